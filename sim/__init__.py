@@ -1,0 +1,1 @@
+"""The world and the application: scenario language, generators, data model, entry points."""

@@ -1,0 +1,83 @@
+"""The one trajectory data model every source produces, and its cutting into learner windows."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from c2inet.data import OBS_LEN, PRED_LEN, Windows
+
+SPLITS = ("train", "val", "test")
+
+
+@dataclass
+class Scene:
+    """One recording: positions of its agents over its frames, NaN where an agent is absent."""
+
+    positions: np.ndarray  # (frames, agents, 2) float64, metres
+    agent_ids: np.ndarray  # (agents,) int64, unique within the scene
+
+    def __post_init__(self):
+        if self.positions.ndim != 3 or self.positions.shape[2] != 2:
+            raise ValueError(
+                f"scene positions must be (frames, agents, 2), got {self.positions.shape}"
+            )
+        if len(self.agent_ids) != self.positions.shape[1]:
+            raise ValueError("one agent id per agent column")
+
+    @property
+    def num_frames(self) -> int:
+        return self.positions.shape[0]
+
+
+@dataclass
+class Domain:
+    """One task: scenes per split, the knobs that made them and the statistics they realise."""
+
+    name: str
+    family: str
+    generator: str
+    knobs: dict[str, Any]
+    dt: float
+    scenes: dict[str, list[Scene]]
+    stats: dict[str, float] = field(default_factory=dict)
+    hash: str = ""
+
+    def windows(self, split: str, stride: int = 1, min_agents: int = 1) -> Windows | None:
+        """Learner windows of one split (None when the split has none)."""
+        parts = [cut_windows(s, stride, min_agents) for s in self.scenes[split]]
+        parts = [p for p in parts if p is not None]
+        return Windows.concat(parts) if parts else None
+
+
+def cut_windows(
+    scene: Scene,
+    stride: int = 1,
+    min_agents: int = 1,
+    obs_len: int = OBS_LEN,
+    pred_len: int = PRED_LEN,
+) -> Windows | None:
+    """Windows of ``obs_len + pred_len`` frames every ``stride`` frames.
+
+    A window keeps the agents present in all its frames, and is kept if it has at least
+    ``min_agents`` of them.
+    """
+    length = obs_len + pred_len
+    if scene.num_frames < length:
+        return None
+    present = ~np.isnan(scene.positions[..., 0])  # (frames, agents)
+    # agents present in every frame of [t, t + length): a sliding-window count over frames
+    counts = np.cumsum(np.vstack([np.zeros((1, present.shape[1]), int), present]), axis=0)
+    starts = np.arange(0, scene.num_frames - length + 1, stride)
+    full = (counts[starts + length] - counts[starts]) == length  # (windows, agents)
+    keep = full.sum(1) >= min_agents
+    starts, full = starts[keep], full[keep]
+    if len(starts) == 0:
+        return None
+    window_idx, agent_idx = np.nonzero(full)
+    frames = starts[window_idx, None] + np.arange(length)
+    positions = scene.positions[frames, agent_idx[:, None]].astype(np.float32)
+    scene_start = np.concatenate([[0], np.cumsum(full.sum(1))]).astype(np.int64)
+    return Windows(positions, scene_start, obs_len)

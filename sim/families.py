@@ -1,0 +1,146 @@
+"""Domain families: one TOML file each, naming a generator, the knob its values set, defaults.
+
+A family file looks like::
+
+    description = "Pymunk crowds whose behavioural noise grows"
+    generator = "crowd"
+    knob = "noise"            # which generator knob the scenario values set
+    seed_offset = 1           # decorrelates families that share knob values
+    [knobs]                   # defaults for every knob of the generator
+    layout = "circle_crossing"
+    [splits]                  # scenes per split
+    train = 300
+    val = 50
+    test = 100
+
+Name-valued families (real data) have ``[values.NAME]`` tables instead of ``knob``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from sim.errors import InputError
+from sim.generators import get_generator
+from sim.options import build
+
+SCENARIOS_DIR = Path(__file__).resolve().parent.parent / "scenarios"
+_FAMILY_NAME = re.compile(r"^[a-z][a-z0-9_]*$")
+
+
+@dataclass(frozen=True)
+class Splits:
+    """How many scenes each split holds (simulated families)."""
+
+    train: int = 300
+    val: int = 50
+    test: int = 100
+
+    def __post_init__(self):
+        for name in ("train", "val", "test"):
+            if not 0 <= getattr(self, name) <= 1_000_000:
+                raise InputError(f"splits.{name}={getattr(self, name)} is out of range")
+        if self.train < 1 or self.test < 1:
+            raise InputError("splits: train and test need at least one scene each")
+
+
+@dataclass(frozen=True)
+class Family:
+    """A parsed family file."""
+
+    name: str
+    path: Path
+    generator: str
+    description: str = ""
+    knob: str | None = None
+    seed_offset: int = 0
+    defaults: dict[str, Any] = field(default_factory=dict)
+    splits: Splits = Splits()
+    values: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+    @property
+    def value_names(self) -> tuple[str, ...]:
+        return tuple(self.values)
+
+    def knobs_for(self, value: float | str) -> dict[str, Any]:
+        """Validated generator knobs for one value of this family, as a plain dict."""
+        merged = dict(self.defaults)
+        if self.values:
+            merged.update(self.values[value])
+        else:
+            merged[self.knob] = value
+        generator = get_generator(self.generator)
+        knobs = build(generator.Knobs, merged, f"{self.path.name} value {value}")
+        return generator.resolve(knobs, self.path.parent)
+
+
+def available_families(extra_dirs: list[Path]) -> dict[str, Path]:
+    """Family name -> TOML path; user folders come after (and may not shadow) the built-in one."""
+    found: dict[str, Path] = {}
+    for folder in [SCENARIOS_DIR, *extra_dirs]:
+        folder = Path(folder)
+        if not folder.is_dir():
+            raise InputError(f"--scenarios-dir {folder}: not a folder")
+        for path in sorted(folder.glob("*.toml")):
+            if not _FAMILY_NAME.match(path.stem):
+                raise InputError(f"{path}: family names use a-z, 0-9 and '_' only")
+            if path.stem in found and found[path.stem] != path:
+                raise InputError(
+                    f"{path}: family {path.stem!r} is already defined in {found[path.stem]}"
+                )
+            found[path.stem] = path
+    return found
+
+
+_FAMILY_KEYS = {"description", "generator", "knob", "seed_offset", "knobs", "splits", "values"}
+
+
+def load_family(path: Path) -> Family:
+    """Read and check one family TOML file; every unknown key is an error."""
+    try:
+        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as error:
+        raise InputError(f"{path}: cannot read family file: {error}") from None
+    unknown = sorted(set(raw) - _FAMILY_KEYS)
+    if unknown:
+        raise InputError(
+            f"{path}: unknown key {unknown[0]!r} (allowed: {', '.join(sorted(_FAMILY_KEYS))})"
+        )
+    if "generator" not in raw:
+        raise InputError(f"{path}: missing key 'generator'")
+    generator = get_generator(raw["generator"], where=str(path))
+    knob_names = {f.name for f in dataclasses.fields(generator.Knobs)}
+    defaults = raw.get("knobs", {})
+    values = raw.get("values", {})
+    knob = raw.get("knob")
+    if not isinstance(defaults, dict) or not isinstance(values, dict):
+        raise InputError(f"{path}: 'knobs' and 'values' must be tables")
+    if (knob is None) == (not values):
+        raise InputError(f"{path}: give either 'knob' (numeric values) or [values.NAME] tables")
+    if knob is not None and knob not in knob_names:
+        raise InputError(f"{path}: knob {knob!r} is not a knob of generator {raw['generator']!r}")
+    for name, table in values.items():
+        if not re.fullmatch(r"[a-z0-9][a-z0-9_-]*", name) or not isinstance(table, dict):
+            raise InputError(f"{path}: bad value table {name!r}")
+    seed_offset = raw.get("seed_offset", 0)
+    if isinstance(seed_offset, bool) or not isinstance(seed_offset, int) or seed_offset < 0:
+        raise InputError(f"{path}: seed_offset must be a non-negative integer")
+    family = Family(
+        name=path.stem,
+        path=path,
+        generator=raw["generator"],
+        description=str(raw.get("description", "")),
+        knob=knob,
+        seed_offset=seed_offset,
+        defaults=defaults,
+        splits=build(Splits, raw.get("splits", {}), f"{path} [splits]"),
+        values=values,
+    )
+    if not values:  # the defaults alone must already be a valid knob set
+        build(generator.Knobs, defaults, f"{path} [knobs]")
+    return family

@@ -1,0 +1,66 @@
+"""Generator registry: a family names its generator by string, as Gymnasium ids name envs.
+
+Every generator is a small class with a typed ``Knobs`` dataclass (which validates ranges) and a
+``generate`` method returning a :class:`sim.data.Domain`. ``tests/test_generators.py`` checks
+every registered generator against that contract.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+
+from sim.data import Domain
+from sim.errors import InputError
+
+GENERATORS: dict[str, type[Generator]] = {}
+
+
+class Generator:
+    """Base class: subclasses set ``name``, ``version``, ``Knobs`` and implement ``generate``."""
+
+    name: ClassVar[str]
+    version: ClassVar[int] = 1  # bump when output for the same knobs changes (cache key)
+    Knobs: ClassVar[type]
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        GENERATORS[cls.name] = cls
+
+    @classmethod
+    def resolve(cls, knobs: Any, base_dir: Path) -> dict[str, Any]:
+        """Knobs as a plain dict; generators that read files resolve their paths here."""
+        import dataclasses
+
+        return dataclasses.asdict(knobs)
+
+    @classmethod
+    def content_key(cls, knobs: dict[str, Any]) -> dict[str, Any]:
+        """What besides knobs, seed and sizes determines the output (e.g. input file hashes)."""
+        return {}
+
+    def generate(
+        self,
+        name: str,
+        family: str,
+        knobs: dict[str, Any],
+        splits: Any,
+        seed: np.random.SeedSequence,
+    ) -> Domain:
+        raise NotImplementedError
+
+
+def get_generator(name: str, where: str = "generator") -> type[Generator]:
+    """The generator class registered under ``name``."""
+    _import_builtin()
+    if name not in GENERATORS:
+        raise InputError(
+            f"{where}: unknown generator {name!r} (known: {', '.join(sorted(GENERATORS))})"
+        )
+    return GENERATORS[name]
+
+
+def _import_builtin() -> None:
+    from sim.generators import crowd, files  # noqa: F401  (registers them)

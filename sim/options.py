@@ -1,0 +1,77 @@
+"""Typed option dataclasses built from TOML or CLI mappings; unknown keys and bad types fail."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import types
+import typing
+from typing import Any, TypeVar
+
+from sim.errors import InputError
+
+T = TypeVar("T")
+
+
+def _coerce(value: Any, kind: Any, where: str, key: str) -> Any:
+    origin = typing.get_origin(kind)
+    if origin in (types.UnionType, typing.Union):
+        options = typing.get_args(kind)
+        if value is None and type(None) in options:
+            return None
+        kind = next(k for k in options if k is not type(None))
+        origin = typing.get_origin(kind)
+    if origin in (list, tuple):
+        if not isinstance(value, list | tuple):
+            raise InputError(f"{where}: {key!r} must be a list, got {value!r}")
+        (item,) = typing.get_args(kind)[:1]
+        return tuple(_coerce(v, item, where, key) for v in value)
+    if kind is bool:
+        if not isinstance(value, bool):
+            raise InputError(f"{where}: {key!r} must be true or false, got {value!r}")
+        return value
+    if kind is int:
+        if isinstance(value, bool) or not isinstance(value, int | float) or value != int(value):
+            raise InputError(f"{where}: {key!r} must be an integer, got {value!r}")
+        return int(value)
+    if kind is float:
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise InputError(f"{where}: {key!r} must be a number, got {value!r}")
+        if not math.isfinite(value):
+            raise InputError(f"{where}: {key!r} must be finite, got {value!r}")
+        return float(value)
+    if kind is str:
+        if not isinstance(value, str):
+            raise InputError(f"{where}: {key!r} must be a string, got {value!r}")
+        return value
+    return value
+
+
+def build(cls: type[T], mapping: dict[str, Any], where: str) -> T:
+    """Build dataclass ``cls`` from ``mapping``: unknown keys and wrong types are errors.
+
+    ``where`` names the input (a file, a scenario part) in the error message. The dataclass's own
+    ``__post_init__`` checks value ranges and raises :class:`InputError` itself.
+    """
+    hints = typing.get_type_hints(cls)
+    fields = {f.name for f in dataclasses.fields(cls) if f.init}
+    unknown = sorted(set(mapping) - fields)
+    if unknown:
+        raise InputError(
+            f"{where}: unknown key {unknown[0]!r} (allowed: {', '.join(sorted(fields))})"
+        )
+    values = {key: _coerce(value, hints[key], where, key) for key, value in mapping.items()}
+    try:
+        return cls(**values)
+    except InputError as error:
+        raise InputError(f"{where}: {error}") from None
+    except TypeError as error:
+        raise InputError(f"{where}: {error}") from None
+
+
+def check_range(name: str, value: float, low: float, high: float, *, open_low=False) -> None:
+    """Raise InputError unless low <= value <= high (or low < value when ``open_low``)."""
+    ok = (value > low if open_low else value >= low) and value <= high
+    if not ok:
+        bracket = "(" if open_low else "["
+        raise InputError(f"{name}={value:g} is out of range {bracket}{low:g}, {high:g}]")

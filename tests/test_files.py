@@ -1,0 +1,66 @@
+"""Real data through the files generator: parsing, validation errors, the vendored ETH-UCY."""
+
+import hashlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sim.domains import build_domain
+from sim.errors import InputError
+from sim.generators.files import read_trajectory_file
+from sim.scenario import parse_scenario
+
+DATA = Path(__file__).resolve().parent.parent / "data"
+
+
+def write(tmp_path, text, name="t.txt"):
+    path = tmp_path / name
+    path.write_bytes(text.encode())
+    return path
+
+
+def test_reads_tabs_spaces_crlf_and_float_frames(tmp_path):
+    path = write(tmp_path, "10.0\t1\t0.0\t1.0\r\n20 1 0.5 1.0\r\n20.0  2  3.0 4.0\r\n\r\n")
+    scene = read_trajectory_file(path)
+    assert scene.positions.shape == (2, 2, 2)
+    np.testing.assert_array_equal(scene.agent_ids, [1, 2])
+    np.testing.assert_array_equal(scene.positions[:, 0], [[0.0, 1.0], [0.5, 1.0]])
+    assert np.isnan(scene.positions[0, 1]).all() and np.array_equal(
+        scene.positions[1, 1], [3.0, 4.0]
+    )
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("10 1 0 0\n20 1 0\n", ":2: expected 4 columns"),
+        ("10 1 0 0\n20 1 x 0\n", ":2: non-numeric"),
+        ("10 1 0 0\n20 1 nan 0\n", ":2: non-finite"),
+        ("10 1 0 0\n20 1 0 0\n40 1 0 0\n", ":3: agent 1 breaks its uniform frame step"),
+        ("10 1 0 0\n10 1 1 1\n", "breaks its uniform frame step"),
+        ("", "no trajectory rows"),
+    ],
+)
+def test_broken_files_name_the_file_and_line(tmp_path, text, message):
+    path = write(tmp_path, text)
+    with pytest.raises(InputError, match=message) as error:
+        read_trajectory_file(path)
+    assert str(path) in str(error.value)
+
+
+def test_vendored_data_matches_its_checksums():
+    for line in (DATA / "SHA256SUMS").read_text().splitlines():
+        digest, name = line.split(maxsplit=1)
+        assert hashlib.sha256((DATA / name).read_bytes()).hexdigest() == digest, name
+
+
+def test_eth_ucy_tasks_train_on_train_files_and_test_on_val_files():
+    (spec,) = parse_scenario("eth_ucy_eth")
+    domain = build_domain(spec, root_seed=0)
+    assert [len(domain.scenes[s]) for s in ("train", "val", "test")] == [1, 0, 1]
+    train, test = domain.windows("train", min_agents=2), domain.windows("test", min_agents=2)
+    assert len(train) >= 40 and len(test) >= 30
+    # biwi_eth: train frames end before val frames start, so no window is in both
+    assert domain.scenes["train"][0].num_frames > domain.scenes["test"][0].num_frames
+    assert 0.5 < domain.stats["mean_speed"] < 4.0  # the known fast ETH time base, in m/s

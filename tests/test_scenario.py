@@ -1,0 +1,114 @@
+"""The scenario language: ranges, lists, joins, and one clear error for every bad input."""
+
+import contextlib
+from pathlib import Path
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from sim.errors import InputError
+from sim.scenario import parse_scenario
+
+
+def names(scenario: str, extra=None) -> list[str]:
+    return [spec.name for spec in parse_scenario(scenario, extra)]
+
+
+def test_range_takes_its_step_from_the_decimals_of_the_start():
+    assert names("crowd_noise_0.1..0.6") == [f"crowd_noise_0.{k}" for k in range(1, 7)]
+    assert [s.value for s in parse_scenario("crowd_noise_0.1..0.3")] == [0.1, 0.2, 0.3]
+
+
+def test_explicit_step_list_and_join():
+    assert names("crowd_density_0.05..0.15:0.05") == [
+        "crowd_density_0.05",
+        "crowd_density_0.10",
+        "crowd_density_0.15",
+    ]
+    assert names("crowd_noise_0.1,0.3+crowd_radius_0.2") == [
+        "crowd_noise_0.1",
+        "crowd_noise_0.3",
+        "crowd_radius_0.2",
+    ]
+
+
+def test_values_set_the_named_knob_over_the_family_defaults():
+    (spec,) = parse_scenario("crowd_radius_0.3")
+    knobs = spec.knobs()
+    assert knobs["radius"] == 0.3 and knobs["agents"] == 2 and knobs["layout"] == "circle_crossing"
+
+
+def test_name_valued_family_resolves_files():
+    specs = parse_scenario("eth_ucy_univ,eth")
+    assert [s.name for s in specs] == ["eth_ucy_univ", "eth_ucy_eth"]
+    univ = specs[0].knobs()
+    assert [Path(p).name for p in univ["train"]] == [
+        "students001_train.txt",
+        "students003_train.txt",
+    ]
+    assert [Path(p).name for p in univ["test"]] == ["students001_val.txt", "students003_val.txt"]
+
+
+def test_user_folder_adds_families(family_dir):
+    assert names("tiny_noise_0.2", [family_dir]) == ["tiny_noise_0.2"]
+
+
+@pytest.mark.parametrize(
+    ("scenario", "message"),
+    [
+        ("crowd_noise_0.6..0.1", "reversed"),
+        ("crowd_noise_0.1..0.6:0", "must be positive"),
+        ("crowd_noise_0.1..0.6:-0.1", "must be positive"),
+        ("crowd_nois_0.1", "unknown family"),
+        ("crowd_noise_abc", "not a number"),
+        ("crowd_noise_0.1,,0.2", "empty value"),
+        ("crowd_noise_-0.5", "out of range"),
+        ("crowd_radius_0", "out of range"),
+        ("crowd_density_5", "impossible density"),
+        ("crowd_noise_0.1+", "empty part"),
+        ("crowd_noise_0.1+crowd_noise_0.1", "appears twice"),
+        ("eth_ucy_paris", "not a value"),
+        ("", "empty"),
+        ("crowd_noise_0.001..10", "more than"),
+    ],
+)
+def test_bad_scenarios_raise_one_clear_error(scenario, message):
+    with pytest.raises(InputError, match=message):
+        parse_scenario(scenario)
+
+
+@pytest.mark.parametrize(
+    ("toml", "message"),
+    [
+        ('generator = "crowd"\nknob = "noise"\nknobz = 1\n', "unknown key 'knobz'"),
+        ('generator = "crowd"\nknob = "noise"\n[knobs]\nradiuss = 0.2\n', "unknown key 'radiuss'"),
+        ('generator = "crowd"\nknob = "noise"\n[splits]\ntrian = 3\n', "unknown key 'trian'"),
+        ('generator = "crowd"\nknob = "nosie"\n', "not a knob"),
+        ('generator = "warp"\nknob = "noise"\n', "unknown generator"),
+        ('generator = "crowd"\nknob = "noise"\n[knobs]\nagents = "many"\n', "must be an integer"),
+        ('generator = "crowd"\nknob = "noise"\n[knobs]\nlayout = "maze"\n', "layout"),
+        ("generator = [", "cannot read"),
+    ],
+)
+def test_bad_family_files_are_rejected(tmp_path, toml, message):
+    (tmp_path / "bad.toml").write_text(toml)
+    with pytest.raises(InputError, match=message):
+        parse_scenario("bad_0.1", [tmp_path])
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.text(alphabet="crowd_noiseradiusdensityeth_ucy0123456789.,:+-_ ", max_size=40))
+def test_parser_returns_a_curriculum_or_raises_its_own_error(text):
+    try:
+        curriculum = parse_scenario(text)
+    except InputError:
+        return
+    assert curriculum and all(spec.name for spec in curriculum)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.text(max_size=30))
+def test_parser_survives_arbitrary_unicode(text):
+    with contextlib.suppress(InputError):
+        parse_scenario(text)
