@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from sim.data import Domain
+from sim.families import Splits
 from sim.generators import get_generator
 from sim.io import read_parquet, write_parquet
 from sim.scenario import DomainSpec
@@ -26,7 +27,7 @@ def domain_seed(root_seed: int, spec: DomainSpec) -> np.random.SeedSequence:
     return np.random.SeedSequence(root_seed, spawn_key=key)
 
 
-def domain_hash(spec: DomainSpec, root_seed: int) -> str:
+def domain_hash(spec: DomainSpec, root_seed: int, splits: Splits | None = None) -> str:
     """Content hash of everything that determines a domain's data."""
     generator = get_generator(spec.family.generator)
     knobs = spec.knobs()
@@ -38,20 +39,26 @@ def domain_hash(spec: DomainSpec, root_seed: int) -> str:
         "inputs": generator.content_key(knobs),
         "seed": root_seed,
         "seed_key": list(domain_seed(root_seed, spec).spawn_key),
-        "splits": vars(spec.family.splits),
+        "splits": vars(splits or spec.family.splits),
     }
     return hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()[:16]
 
 
-def build_domain(spec: DomainSpec, root_seed: int, cache_dir: Path | None = None) -> Domain:
-    """Generate the domain of ``spec``, or read it from ``cache_dir`` when already made."""
-    digest = domain_hash(spec, root_seed)
+def build_domain(
+    spec: DomainSpec, root_seed: int, cache_dir: Path | None = None, splits: Splits | None = None
+) -> Domain:
+    """Generate the domain of ``spec``, or read it from ``cache_dir`` when already made.
+
+    ``splits`` overrides the family's scene counts (e.g. tiny sizes for smoke runs).
+    """
+    splits = splits or spec.family.splits
+    digest = domain_hash(spec, root_seed, splits)
     cached = cache_dir / f"{spec.name}-{digest}.parquet" if cache_dir else None
     if cached and cached.exists():
         return read_parquet(cached)
     generator = get_generator(spec.family.generator)()
     domain = generator.generate(
-        spec.name, spec.family.name, spec.knobs(), spec.family.splits, domain_seed(root_seed, spec)
+        spec.name, spec.family.name, spec.knobs(), splits, domain_seed(root_seed, spec)
     )
     domain.hash = digest
     if cached:

@@ -1,0 +1,63 @@
+"""Training throughput of every method on the same data, side by side in one run.
+
+Trains each method on the same two tasks of a scenario and prints training scenes per second
+(scenes passed through a training step, replayed ones included, over the wall time of training
+and the method's hooks, evaluation excluded) and each method's cost relative to fine-tuning;
+C2INet's target is at most 1.5x.
+
+    python benchmarks/train_throughput.py [--scenario crowd_noise_0.1,0.2] [--epochs 10]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import torch
+
+from c2inet.methods.base import get_method
+from c2inet.model import ModelConfig
+from c2inet.trainer import ContinualTrainer, Task, TrainConfig
+from sim.domains import build_domain
+from sim.scenario import parse_scenario
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--scenario", default="crowd_noise_0.1,0.2")
+    p.add_argument("--epochs", type=int, default=10)
+    p.add_argument("--methods", default="finetune,c2inet-online,ewc,coresets,joint")
+    args = p.parse_args()
+    tasks = []
+    for spec in parse_scenario(args.scenario):
+        d = build_domain(spec, 0)
+        tasks.append(Task(d.name, d.windows("train"), None, d.windows("test")))
+    print(
+        f"torch threads: {torch.get_num_threads()}; tasks: {[t.name for t in tasks]}; "
+        f"train scenes per task: {[len(t.train) for t in tasks]}; epochs: {args.epochs}"
+    )
+    print(f"{'method':<15}{'train s':>10}{'scenes':>9}{'scenes/s':>10}{'vs finetune':>13}")
+    base = None
+    for name in args.methods.split(","):
+        method = get_method(name)(ModelConfig())
+        trainer = ContinualTrainer(method, tasks, TrainConfig(epochs=args.epochs, val_every=0))
+        seconds = 0.0
+        scenes = 0
+        original = trainer._train_task
+
+        def timed(ctx, original=original, method=method):
+            nonlocal seconds, scenes
+            start = time.perf_counter()
+            original(ctx)
+            seconds += time.perf_counter() - start
+            scenes += len(method.training_windows(ctx)) * args.epochs
+
+        trainer._train_task = timed
+        trainer.run()
+        rate = scenes / seconds
+        base = base or rate
+        print(f"{name:<15}{seconds:>10.1f}{scenes:>9}{rate:>10.0f}{base / rate:>12.2f}x")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,97 @@
+"""STGAT (Huang et al., ICCV 2019): trajectory LSTM, per-step graph attention, graph LSTM, decoder.
+
+Scenes are batched with padding and masks: one attention call covers every scene of a batch at
+every observed step, with no Python loop over scenes.
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from c2inet.batch import Batch
+
+
+class GraphAttention(nn.Module):
+    """Multi-head graph attention over the agents of each scene (padded, masked)."""
+
+    def __init__(self, in_dim: int, out_dim: int, heads: int, concat: bool):
+        super().__init__()
+        self.heads, self.out_dim, self.concat = heads, out_dim, concat
+        self.linear = nn.Linear(in_dim, heads * out_dim, bias=False)
+        self.att_src = nn.Parameter(torch.randn(heads, out_dim) * 0.1)
+        self.att_dst = nn.Parameter(torch.randn(heads, out_dim) * 0.1)
+        self.bias = nn.Parameter(torch.zeros(heads * out_dim if concat else out_dim))
+
+    def forward(self, x: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        # x: (T, B, A, F); mask: (B, A)
+        h = self.linear(x).unflatten(-1, (self.heads, self.out_dim))  # (T, B, A, H, D)
+        src = (h * self.att_src).sum(-1)  # (T, B, A, H)
+        dst = (h * self.att_dst).sum(-1)
+        scores = nn.functional.leaky_relu(src.unsqueeze(3) + dst.unsqueeze(2), 0.2)  # (T,B,A,A,H)
+        scores = scores.masked_fill(~mask[None, :, None, :, None], float("-inf"))
+        weights = torch.softmax(scores, dim=3)
+        weights = torch.nan_to_num(weights)  # rows of padding slots
+        out = torch.einsum("tbijh,tbjhd->tbihd", weights, h)
+        out = out.flatten(-2) if self.concat else out.mean(-2)
+        return out + self.bias
+
+
+class STGATEncoder(nn.Module):
+    """Encodes observed displacements into a 64-d vector per agent (32 trajectory + 32 graph)."""
+
+    def __init__(self, traj_hidden=32, graph_hidden=32, gat_hidden=16, gat_out=32, heads=4):
+        super().__init__()
+        self.traj_lstm = nn.LSTM(2, traj_hidden)
+        self.gat1 = GraphAttention(traj_hidden, gat_hidden, heads, concat=True)
+        self.gat2 = GraphAttention(gat_hidden * heads, gat_out, 1, concat=False)
+        self.graph_lstm = nn.LSTM(gat_out, graph_hidden)
+        self.out_dim = traj_hidden + graph_hidden
+
+    def forward(self, obs_rel: torch.Tensor, batch: Batch) -> torch.Tensor:
+        traj, _ = self.traj_lstm(obs_rel)  # (T, N, 32)
+        padded, mask = batch.pad(traj)
+        social = self.gat2(nn.functional.elu(self.gat1(padded, mask)), mask)
+        graph, _ = self.graph_lstm(batch.unpad(social))
+        return torch.cat([traj[-1], graph[-1]], dim=-1)
+
+
+class Decoder(nn.Module):
+    """Autoregressive LSTM decoder of future displacements, conditioned on a latent vector."""
+
+    def __init__(self, context_dim: int, latent_dim: int, hidden=64, embed=16, pred_len=12):
+        super().__init__()
+        self.pred_len = pred_len
+        self.init = nn.Sequential(nn.Linear(context_dim + latent_dim, hidden), nn.Tanh())
+        self.embed = nn.Linear(2, embed)
+        self.cell = nn.LSTMCell(embed, hidden)
+        self.out = nn.Linear(hidden, 2)
+
+    def forward(self, context: torch.Tensor, latent: torch.Tensor, last_rel: torch.Tensor):
+        # context: (S, N, C); latent: (S, N, L); last_rel: (N, 2) -> (12, S, N, 2)
+        samples, agents = latent.shape[:2]
+        h = self.init(torch.cat([context, latent], -1)).flatten(0, 1)
+        c = torch.zeros_like(h)
+        step = last_rel.expand(samples, agents, 2).flatten(0, 1)
+        outputs = []
+        for _ in range(self.pred_len):
+            h, c = self.cell(self.embed(step), (h, c))
+            step = self.out(h)
+            outputs.append(step)
+        return torch.stack(outputs).unflatten(1, (samples, agents))
+
+
+class STGAT(nn.Module):
+    """The backbone as one module: ``encode`` then ``decode`` with any latent."""
+
+    def __init__(self, latent_dim: int, pred_len: int = 12):
+        super().__init__()
+        self.encoder = STGATEncoder()
+        self.decoder = Decoder(self.encoder.out_dim, latent_dim, pred_len=pred_len)
+        self.out_dim = self.encoder.out_dim
+
+    def encode(self, obs_rel: torch.Tensor, batch: Batch) -> torch.Tensor:
+        return self.encoder(obs_rel, batch)
+
+    def decode(self, context, latent, last_rel):
+        return self.decoder(context, latent, last_rel)

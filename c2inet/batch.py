@@ -1,0 +1,85 @@
+"""Tensor batches of scenes: flattened agents for the LSTMs, padded scenes for graph attention."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from c2inet.data import Windows
+
+
+@dataclass
+class Batch:
+    """Scenes as tensors. Model inputs are built from ``obs`` alone (no future leaks in)."""
+
+    obs: torch.Tensor  # (8, N, 2) observed positions, metres
+    fut: torch.Tensor  # (12, N, 2) future positions (targets only)
+    scene_start: torch.Tensor  # (B + 1,) agent offsets of the scenes
+    scene_of: torch.Tensor  # (N,) scene index of every agent
+    slot_of: torch.Tensor  # (N,) position of every agent inside its scene
+    max_agents: int
+
+    @property
+    def num_scenes(self) -> int:
+        return len(self.scene_start) - 1
+
+    @property
+    def obs_rel(self) -> torch.Tensor:
+        """Observed displacements by backward differences; the first step is zero."""
+        return torch.cat([torch.zeros_like(self.obs[:1]), self.obs[1:] - self.obs[:-1]])
+
+    @property
+    def fut_rel(self) -> torch.Tensor:
+        """Future displacements, starting from the last observed position."""
+        previous = torch.cat([self.obs[-1:], self.fut[:-1]])
+        return self.fut - previous
+
+    def pad(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(..., N, F) per agent -> (..., B, A, F) per scene slot, and the (B, A) presence mask."""
+        shape = (*x.shape[:-2], self.num_scenes, self.max_agents, x.shape[-1])
+        padded = x.new_zeros(shape)
+        padded[..., self.scene_of, self.slot_of, :] = x
+        mask = torch.zeros(self.num_scenes, self.max_agents, dtype=torch.bool)
+        mask[self.scene_of, self.slot_of] = True
+        return padded, mask
+
+    def unpad(self, padded: torch.Tensor) -> torch.Tensor:
+        return padded[..., self.scene_of, self.slot_of, :]
+
+
+def make_batch(windows: Windows, scenes: np.ndarray | None = None) -> Batch:
+    """The batch of the given scenes of ``windows`` (all scenes when None)."""
+    part = windows if scenes is None else windows.subset(scenes)
+    positions = torch.from_numpy(np.ascontiguousarray(part.positions.transpose(1, 0, 2)))
+    counts = part.agents_per_scene
+    scene_of = np.repeat(np.arange(len(counts)), counts)
+    slot_of = np.arange(len(scene_of)) - np.repeat(part.scene_start[:-1], counts)
+    return Batch(
+        obs=positions[: part.obs_len],
+        fut=positions[part.obs_len :],
+        scene_start=torch.from_numpy(part.scene_start),
+        scene_of=torch.from_numpy(scene_of),
+        slot_of=torch.from_numpy(slot_of),
+        max_agents=int(counts.max()),
+    )
+
+
+def batches(
+    windows: Windows, batch_scenes: int, rng: np.random.Generator | None = None
+) -> Iterator[Batch]:
+    """Batches of ``batch_scenes`` scenes, shuffled when ``rng`` is given."""
+    order = rng.permutation(len(windows)) if rng is not None else np.arange(len(windows))
+    for first in range(0, len(order), batch_scenes):
+        yield make_batch(windows, order[first : first + batch_scenes])
+
+
+def scene_mean(per_agent: torch.Tensor, batch: Batch) -> torch.Tensor:
+    """Mean over scenes of the per-scene mean over agents (GCRL's erm_loss, scaled by 1/B)."""
+    sums = torch.zeros(batch.num_scenes, dtype=per_agent.dtype).index_add(
+        0, batch.scene_of, per_agent
+    )
+    counts = (batch.scene_start[1:] - batch.scene_start[:-1]).to(per_agent.dtype)
+    return (sums / counts).mean()

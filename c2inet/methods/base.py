@@ -1,0 +1,82 @@
+"""The method contract: a small class adding behaviour to the one trainer through hooks.
+
+Hooks, in the order the trainer calls them (Avalanche-style): ``before_task``,
+``training_windows``, ``extra_loss`` (every step), ``after_epoch``, ``after_task``. A method
+says in its docstring which hooks it uses. Methods register by ``name``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+import torch
+
+from c2inet.data import Windows
+from c2inet.model import ModelConfig, Predictor
+
+METHODS: dict[str, type[Method]] = {}
+
+
+@dataclass
+class TaskContext:
+    """What a hook may look at: the current task's data, the model and the optimiser."""
+
+    index: int  # 0-based position of the task in the curriculum
+    name: str
+    train: Windows
+    model: torch.nn.Module
+    optimiser: torch.optim.Optimizer | None
+    rng: np.random.Generator
+    seen_train: list[Windows] = field(default_factory=list)  # earlier tasks (joint only)
+
+
+class Method:
+    """Plain sequential training; subclasses override the hooks they need."""
+
+    name: ClassVar[str]
+    trains: ClassVar[bool] = True
+    sees_old_tasks: ClassVar[bool] = False  # True only for the joint upper reference
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        METHODS[cls.name] = cls
+
+    def __init__(self, model_config: ModelConfig, options: dict[str, Any] | None = None):
+        self.model_config = model_config
+        self.options = options or {}
+
+    def build_model(self, scale: float) -> torch.nn.Module:
+        return Predictor(self.model_config, scale)
+
+    def before_task(self, ctx: TaskContext) -> None:
+        pass
+
+    def training_windows(self, ctx: TaskContext) -> Windows:
+        return ctx.train
+
+    def extra_loss(self, model: torch.nn.Module) -> torch.Tensor | None:
+        return None
+
+    def after_epoch(self, ctx: TaskContext, epoch: int) -> None:
+        pass
+
+    def after_task(self, ctx: TaskContext) -> None:
+        pass
+
+    def state_dict(self, model: torch.nn.Module) -> dict[str, Any]:
+        """Method state saved with each task checkpoint (tensors and plain values only)."""
+        return {}
+
+    def summary(self) -> dict[str, Any]:
+        """Extra per-task figures for the report (e.g. the queue size)."""
+        return {}
+
+
+def get_method(name: str) -> type[Method]:
+    from c2inet.methods import c2inet_online, coresets, cv, ewc, finetune, joint  # noqa: F401
+
+    if name not in METHODS:
+        raise KeyError(f"unknown method {name!r} (known: {', '.join(sorted(METHODS))})")
+    return METHODS[name]

@@ -1,0 +1,33 @@
+"""Coresets: replay a fixed-size random buffer of scenes from every past task.
+
+After each task a random subset of ``per_task`` (default 30) of its training scenes joins the
+buffer; later tasks train on their own scenes plus the buffer (BooVAE's ``add_coreset``).
+Hooks: ``training_windows``, ``after_task``. Example: ``--methods coresets``
+"""
+
+from typing import Any
+
+from c2inet.data import Windows
+from c2inet.methods.base import Method, TaskContext
+
+
+class Coresets(Method):
+    name = "coresets"
+
+    def __init__(self, model_config, options: dict[str, Any] | None = None):
+        super().__init__(model_config, options)
+        self.per_task = int(self.options.get("per_task", 30))
+        self.buffer: list[Windows] = []
+
+    def training_windows(self, ctx: TaskContext) -> Windows:
+        return Windows.concat([ctx.train, *self.buffer])
+
+    def after_task(self, ctx: TaskContext) -> None:
+        count = min(self.per_task, len(ctx.train))
+        self.buffer.append(ctx.train.subset(ctx.rng.choice(len(ctx.train), count, replace=False)))
+
+    def buffer_scenes(self) -> int:
+        return sum(len(w) for w in self.buffer)
+
+    def summary(self) -> dict[str, Any]:
+        return {"buffer_scenes": self.buffer_scenes()}

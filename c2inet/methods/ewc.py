@@ -1,0 +1,56 @@
+"""Online EWC (Kirkpatrick et al. 2017; Schwarz et al. 2018): a Fisher-weighted pull to old weights.
+
+After each task the diagonal Fisher of the loss is estimated from squared gradients over the
+task's batches and folded into a running Fisher (``gamma`` decays the old one); the penalty
+``lambda/2 * sum F (theta - theta*)^2`` then anchors later training.
+Hooks: ``extra_loss``, ``after_task``. Example: ``--methods ewc``
+"""
+
+from typing import Any
+
+import torch
+
+from c2inet.batch import batches
+from c2inet.methods.base import Method, TaskContext
+
+
+class EWC(Method):
+    name = "ewc"
+
+    def __init__(self, model_config, options: dict[str, Any] | None = None):
+        super().__init__(model_config, options)
+        self.strength = float(self.options.get("lambda", 100.0))
+        self.gamma = float(self.options.get("gamma", 1.0))
+        self.fisher: dict[str, torch.Tensor] = {}
+        self.anchor: dict[str, torch.Tensor] = {}
+
+    def penalty(self, model: torch.nn.Module) -> torch.Tensor:
+        total = torch.zeros(())
+        for name, p in model.named_parameters():
+            if name in self.fisher:
+                total = total + (self.fisher[name] * (p - self.anchor[name]) ** 2).sum()
+        return 0.5 * self.strength * total
+
+    def extra_loss(self, model: torch.nn.Module) -> torch.Tensor | None:
+        return self.penalty(model) if self.fisher else None
+
+    def after_task(self, ctx: TaskContext) -> None:
+        model = ctx.model
+        fisher = {n: torch.zeros_like(p) for n, p in model.named_parameters()}
+        count = 0
+        for batch in batches(ctx.train, 16, ctx.rng):
+            model.zero_grad()
+            loss, _ = model.loss(batch)
+            loss.backward()
+            for n, p in model.named_parameters():
+                if p.grad is not None:
+                    fisher[n] += p.grad.detach() ** 2
+            count += 1
+        model.zero_grad()
+        for n in fisher:
+            fisher[n] /= max(count, 1)
+            self.fisher[n] = self.gamma * self.fisher.get(n, 0) + fisher[n]
+        self.anchor = {n: p.detach().clone() for n, p in model.named_parameters()}
+
+    def state_dict(self, model: torch.nn.Module) -> dict[str, Any]:
+        return {"fisher": self.fisher, "anchor": self.anchor}

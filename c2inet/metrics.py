@@ -1,0 +1,67 @@
+"""Pure metric functions: displacement errors, best-of-K by scene or by agent, continual scores.
+
+Every aggregate names how it was taken: ``joint`` takes the best sample per scene (the sum of its
+agents' errors, as sgan and GCRL do), ``agent`` the best sample per agent (Social-STGCNN style).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def displacement_errors(pred: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """ADE and FDE of every sample and agent: pred (K, T, N, 2), truth (T, N, 2) -> (K, N) each."""
+    distance = np.linalg.norm(pred - truth[None], axis=-1)  # (K, T, N)
+    return distance.mean(axis=1), distance[:, -1]
+
+
+def best_of_k(errors: np.ndarray, scene_start: np.ndarray, mode: str) -> np.ndarray:
+    """Per-agent error after choosing the best of K samples; errors (K, N) -> (N,).
+
+    ``joint``: one sample per scene, the one with the smallest sum over the scene's agents.
+    ``agent``: each agent's own smallest error.
+    """
+    if mode == "agent":
+        return errors.min(axis=0)
+    if mode != "joint":
+        raise ValueError(f"unknown best-of-K mode {mode!r}")
+    counts = np.diff(scene_start)
+    scene_of = np.repeat(np.arange(len(counts)), counts)
+    totals = np.zeros((errors.shape[0], len(counts)))
+    np.add.at(totals, (slice(None), scene_of), errors)
+    best = totals.argmin(axis=0)  # (scenes,)
+    return errors[best[scene_of], np.arange(errors.shape[1])]
+
+
+def evaluate_predictions(
+    pred: np.ndarray, truth: np.ndarray, scene_start: np.ndarray
+) -> dict[str, float]:
+    """ADE/FDE at K = 1 (the first sample) and best-of-K, joint and per agent, in metres."""
+    ade, fde = displacement_errors(pred, truth)
+    return {
+        "ade": float(best_of_k(ade, scene_start, "joint").mean()),
+        "fde": float(best_of_k(fde, scene_start, "joint").mean()),
+        "ade_agent": float(best_of_k(ade, scene_start, "agent").mean()),
+        "fde_agent": float(best_of_k(fde, scene_start, "agent").mean()),
+        "ade_k1": float(ade[0].mean()),
+        "fde_k1": float(fde[0].mean()),
+    }
+
+
+def average_seen(matrix: np.ndarray) -> np.ndarray:
+    """The paper's Table-2 row: after task i, the mean error over tasks 0..i."""
+    return np.array([np.mean(matrix[i, : i + 1]) for i in range(len(matrix))])
+
+
+def forgetting(matrix: np.ndarray) -> np.ndarray:
+    """Per task j but the last: worst error after leaving it minus the error right after it."""
+    t = len(matrix)
+    return np.array([matrix[j + 1 :, j].max() - matrix[j, j] for j in range(t - 1)])
+
+
+def backward_transfer(matrix: np.ndarray) -> float:
+    """Mean over j < T-1 of final error minus error right after training j (> 0: worse)."""
+    t = len(matrix)
+    if t < 2:
+        return 0.0
+    return float(np.mean([matrix[-1, j] - matrix[j, j] for j in range(t - 1)]))

@@ -1,0 +1,235 @@
+"""The prior queue: a mixture of diagonal Gaussians over the confounder C, grown and pruned online.
+
+Equation numbers follow ``c2inet-method.md``: Eq 8 fits a new component by a boosting step
+against the target density T, Eq 9 fits its weight, and pruning removes the components whose loss
+costs the Eq 10 objective least. Weights are stored explicitly and always sum to one.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import torch
+
+LOG_2PI = math.log(2 * math.pi)
+
+
+def gaussian_log_prob(x: torch.Tensor, mean: torch.Tensor, logvar: torch.Tensor) -> torch.Tensor:
+    """log N(x; mean, diag exp(logvar)) summed over the last axis (broadcasting)."""
+    return -0.5 * (LOG_2PI + logvar + (x - mean) ** 2 / logvar.exp()).sum(-1)
+
+
+def gaussian_kl(m1, lv1, m2, lv2) -> torch.Tensor:
+    """KL(N(m1, e^lv1) || N(m2, e^lv2)) for diagonal Gaussians, summed over the last axis."""
+    return 0.5 * (lv2 - lv1 + (lv1.exp() + (m1 - m2) ** 2) / lv2.exp() - 1).sum(-1)
+
+
+def symmetric_kl(m1, lv1, m2, lv2, cap: float = 50.0) -> torch.Tensor:
+    """Symmetric KL, capped so that the diversity term cannot push without bound."""
+    return (0.5 * (gaussian_kl(m1, lv1, m2, lv2) + gaussian_kl(m2, lv2, m1, lv1))).clamp(max=cap)
+
+
+@dataclass
+class GaussianMixture:
+    """A diagonal Gaussian mixture with explicit weights; the queue and the targets are these."""
+
+    means: torch.Tensor  # (K, d)
+    logvars: torch.Tensor  # (K, d)
+    weights: torch.Tensor  # (K,), sums to 1
+
+    def __len__(self) -> int:
+        return len(self.weights)
+
+    def log_prob(self, x: torch.Tensor) -> torch.Tensor:
+        """log sum_k w_k N(x; m_k, s_k^2), by logsumexp; x: (..., d) -> (...)."""
+        per = gaussian_log_prob(x.unsqueeze(-2), self.means, self.logvars)  # (..., K)
+        return torch.logsumexp(per + self.weights.clamp_min(1e-30).log(), dim=-1)
+
+    def sample(self, n: int, generator: torch.Generator | None = None) -> torch.Tensor:
+        k = torch.multinomial(self.weights, n, replacement=True, generator=generator)
+        noise = torch.randn(n, self.means.shape[1], generator=generator)
+        return self.means[k] + (0.5 * self.logvars[k]).exp() * noise
+
+    def detached(self) -> GaussianMixture:
+        return GaussianMixture(
+            self.means.detach().clone(),
+            self.logvars.detach().clone(),
+            self.weights.detach().clone(),
+        )
+
+    def mean_pairwise_skl(self) -> torch.Tensor:
+        """R_div: the mean symmetric KL over all pairs of components (0 with one component)."""
+        k = len(self)
+        if k < 2:
+            return torch.zeros(())
+        skl = symmetric_kl(
+            self.means[:, None], self.logvars[:, None], self.means[None], self.logvars[None]
+        )
+        return skl.triu(1).sum() * 2 / (k * (k - 1))
+
+
+def mix(parts: list[GaussianMixture], weights: list[float]) -> GaussianMixture:
+    """The mixture sum_i weights[i] * parts[i]."""
+    return GaussianMixture(
+        torch.cat([p.means for p in parts]),
+        torch.cat([p.logvars for p in parts]),
+        torch.cat([w * p.weights for p, w in zip(parts, weights, strict=True)]),
+    )
+
+
+def moment_match(means: torch.Tensor, logvars: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """One Gaussian with the mean and variance of the equal mixture of the given ones."""
+    m = means.mean(0)
+    var = (logvars.exp() + means**2).mean(0) - m**2
+    return m, var.clamp_min(1e-6).log()
+
+
+@dataclass
+class QueueConfig:
+    """Switches and sizes of the prior queue (defaults from the method notes, section 5)."""
+
+    capacity: int = 45  # gamma
+    weight_opt: bool = True  # Eq 9; off: uniform weights ("average weight parameters")
+    divergence: bool = True  # the symmetric-KL diversity term in Eq 8 and pruning
+    pruning: bool = True
+    lambda_div: float = 0.1
+    fit_steps: int = 200  # Adam steps of the Eq 8 component fit
+    fit_samples: int = 64
+    fit_lr: float = 3e-2
+    target_samples: int = 1000
+
+
+class PriorQueue:
+    """The memory queue of prior components, with the online C2INet update rules."""
+
+    def __init__(self, dim: int, config: QueueConfig | None = None):
+        self.dim = dim
+        self.config = config or QueueConfig()
+        self.mixture = GaussianMixture(torch.zeros(1, dim), torch.zeros(1, dim), torch.ones(1))
+
+    def __len__(self) -> int:
+        return len(self.mixture)
+
+    def log_prob(self, c: torch.Tensor) -> torch.Tensor:
+        return self.mixture.log_prob(c)
+
+    def reset(self, mean: torch.Tensor, logvar: torch.Tensor) -> None:
+        """Start the queue with one component (the first task's initial prior)."""
+        self.mixture = GaussianMixture(mean[None].detach(), logvar[None].detach(), torch.ones(1))
+
+    def add(self, mean: torch.Tensor, logvar: torch.Tensor, new_weight: float) -> None:
+        """Append a component with weight ``new_weight``; the old ones keep 1 - new_weight."""
+        m = self.mixture
+        weights = torch.cat([(1 - new_weight) * m.weights, torch.tensor([new_weight])])
+        if not self.config.weight_opt:
+            weights = torch.full((len(weights),), 1 / len(weights))
+        self.mixture = GaussianMixture(
+            torch.cat([m.means, mean[None].detach()]),
+            torch.cat([m.logvars, logvar[None].detach()]),
+            weights,
+        )
+
+    def remove(self, index: int) -> None:
+        keep = torch.arange(len(self)) != index
+        m = self.mixture
+        self.mixture = GaussianMixture(
+            m.means[keep], m.logvars[keep], m.weights[keep] / m.weights[keep].sum()
+        )
+
+    # --- Eq 8: the new component -------------------------------------------------------------
+    def fit_component(self, target: GaussianMixture, generator: torch.Generator | None = None):
+        """Eq 8: a Gaussian P fitted where the target T is poorly covered by the queue M.
+
+        Maximises E_P[log T + log(T / (T + M))] + H[P] (+ lambda_div * mean SKL(P, P_k)), i.e.
+        minimises KL(P || T r) with r = T / (T + M) in (0, 1). BooVAE's form E_P[log T/M] + H[P]
+        has the same optimum direction but is unbounded for latent-space Gaussians (T/M grows
+        without limit in the tails), so P would run away; the factor r keeps the target
+        normalisable while still favouring regions that M misses.
+        """
+        cfg = self.config
+        current = self.mixture.detached()
+        start = target.sample(1, generator)[0]
+        mean = start.clone().requires_grad_(True)
+        logvar = target.logvars.mean(0).clone().requires_grad_(True)
+        optimiser = torch.optim.Adam([mean, logvar], lr=cfg.fit_lr)
+        for _ in range(cfg.fit_steps):
+            noise = torch.randn(cfg.fit_samples, self.dim, generator=generator)
+            c = mean + (0.5 * logvar).exp() * noise
+            entropy = 0.5 * (1 + LOG_2PI + logvar).sum()
+            log_t, log_m = target.log_prob(c), current.log_prob(c)
+            objective = (2 * log_t - torch.logaddexp(log_t, log_m)).mean() + entropy
+            if cfg.divergence:
+                skl = symmetric_kl(mean, logvar, current.means, current.logvars).mean()
+                objective = objective + cfg.lambda_div * skl
+            optimiser.zero_grad()
+            (-objective).backward()
+            optimiser.step()
+        return mean.detach(), logvar.detach()
+
+    # --- Eq 9: the weight of the new component -----------------------------------------------
+    def fit_weight(
+        self, mean: torch.Tensor, logvar: torch.Tensor, target: GaussianMixture, generator=None
+    ) -> float:
+        """The new component's weight 1 - alpha maximising E_T[log(alpha M + (1 - alpha) P)].
+
+        A concave 1-D problem, solved by golden-section search on [1e-3, 1 - 1e-3].
+        """
+        c = target.sample(self.config.target_samples, generator)
+        log_m = self.mixture.log_prob(c)
+        log_p = gaussian_log_prob(c, mean, logvar)
+
+        def score(new: float) -> float:
+            return torch.logaddexp(math.log(1 - new) + log_m, math.log(new) + log_p).mean().item()
+
+        low, high = 1e-3, 1 - 1e-3
+        ratio = (math.sqrt(5) - 1) / 2
+        a, b = high - ratio * (high - low), low + ratio * (high - low)
+        fa, fb = score(a), score(b)
+        for _ in range(40):
+            if fa < fb:
+                low, a, fa = a, b, fb
+                b = low + ratio * (high - low)
+                fb = score(b)
+            else:
+                high, b, fb = b, a, fa
+                a = high - ratio * (high - low)
+                fa = score(a)
+        return (low + high) / 2
+
+    # --- pruning by the Eq 10 criterion --------------------------------------------------------
+    def prune(self, generator: torch.Generator | None = None) -> list[int]:
+        """Remove components until at most ``capacity`` remain; returns the removed indices.
+
+        Each round removes the component whose deletion (with renormalised weights) lowers
+        E_{c~M}[log M(c)] - lambda_div * R_div the least.
+        """
+        removed = []
+        cfg = self.config
+        while cfg.pruning and len(self) > cfg.capacity:
+            m = self.mixture
+            c = m.sample(cfg.target_samples, generator)
+            full = m.log_prob(c).mean() + (
+                cfg.lambda_div * m.mean_pairwise_skl() if cfg.divergence else 0
+            )
+            costs = []
+            for k in range(len(self)):
+                keep = torch.arange(len(self)) != k
+                rest = GaussianMixture(
+                    m.means[keep], m.logvars[keep], m.weights[keep] / m.weights[keep].sum()
+                )
+                value = rest.log_prob(c).mean()
+                if cfg.divergence:
+                    value = value + cfg.lambda_div * rest.mean_pairwise_skl()
+                costs.append((full - value).item())
+            index = int(torch.tensor(costs).argmin())
+            self.remove(index)
+            removed.append(index)
+        return removed
+
+    def state_dict(self) -> dict[str, torch.Tensor]:
+        m = self.mixture
+        return {"means": m.means, "logvars": m.logvars, "weights": m.weights}
+
+    def load_state_dict(self, state: dict[str, torch.Tensor]) -> None:
+        self.mixture = GaussianMixture(state["means"], state["logvars"], state["weights"])

@@ -1,0 +1,205 @@
+"""The continual trainer: tasks in order, L epochs each, then every task's test split evaluated.
+
+One trainer serves every method; methods add behaviour through hooks (``c2inet.methods.base``).
+Model selection is the last epoch of each task; no task's data is looked at outside its turn,
+except by methods that declare ``sees_old_tasks`` (the joint reference).
+"""
+
+from __future__ import annotations
+
+import os
+import zlib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from c2inet.batch import batches
+from c2inet.data import Windows
+from c2inet.methods.base import Method, TaskContext
+from c2inet.metrics import evaluate_predictions
+
+METRICS = ("ade", "fde", "ade_agent", "fde_agent", "ade_k1", "fde_k1")
+
+
+@dataclass
+class Task:
+    """One domain as the learner sees it: windows per split (val may be None)."""
+
+    name: str
+    train: Windows
+    val: Windows | None
+    test: Windows
+
+
+@dataclass
+class TrainConfig:
+    epochs: int = 20  # L, per task
+    batch_scenes: int = 16
+    lr: float = 3e-3
+    k: int = 20  # samples for best-of-K
+    seed: int = 0
+    eval_batch_scenes: int = 256
+    val_every: int = 1  # epochs between validation curves (0: never)
+
+
+@dataclass
+class Result:
+    """Everything a run measured: one (tasks x tasks) matrix per metric, and the history."""
+
+    tasks: list[str]
+    matrices: dict[str, np.ndarray]
+    summaries: list[dict[str, Any]] = field(default_factory=list)
+    history: list[dict[str, Any]] = field(default_factory=list)
+
+
+Observer = Callable[[str, dict[str, Any]], None]
+
+
+def _generator(seed: int, method: str) -> np.random.Generator:
+    return np.random.default_rng(
+        np.random.SeedSequence(seed, spawn_key=(zlib.crc32(method.encode()),))
+    )
+
+
+def evaluate(
+    model: torch.nn.Module, windows: Windows, k: int, seed: int, batch_scenes: int = 256
+) -> dict[str, float]:
+    """Metrics of ``model`` on ``windows`` with ``k`` samples, reproducible for a seed."""
+    preds, truths, counts = [], [], []
+    was_training = getattr(model, "training", False)
+    model.eval()
+    with torch.random.fork_rng(devices=[]):
+        torch.manual_seed(seed)
+        for batch in batches(windows, batch_scenes):
+            preds.append(model.predict(batch, k).numpy())
+            truths.append(batch.fut.numpy())
+            counts.append(np.diff(batch.scene_start.numpy()))
+    model.train(was_training)
+    counts = np.concatenate(counts)
+    scene_start = np.concatenate([[0], np.cumsum(counts)])
+    return evaluate_predictions(
+        np.concatenate(preds, axis=2), np.concatenate(truths, axis=1), scene_start
+    )
+
+
+def motion_scale(windows: Windows) -> float:
+    """Mean observed displacement per frame, metres: the unit the networks see."""
+    steps = np.linalg.norm(np.diff(windows.positions[:, : windows.obs_len], axis=1), axis=-1)
+    return float(max(steps.mean(), 1e-3))
+
+
+class ContinualTrainer:
+    """Runs one method through a curriculum and fills the task-by-task error matrices."""
+
+    def __init__(
+        self,
+        method: Method,
+        tasks: list[Task],
+        config: TrainConfig,
+        checkpoint_dir: Path | None = None,
+        observers: list[Observer] | None = None,
+        progress: Callable[[Any], Any] | None = None,
+    ):
+        self.method, self.tasks, self.config = method, tasks, config
+        self.checkpoint_dir = checkpoint_dir
+        self.observers = observers or []
+        self.progress = progress or (lambda iterable, **_: iterable)
+        self.history: list[dict[str, Any]] = []
+
+    def _notify(self, event: str, data: dict[str, Any]) -> None:
+        for observer in self.observers:
+            observer(event, data)
+
+    def run(self) -> Result:
+        cfg, method = self.config, self.method
+        torch.manual_seed(cfg.seed)
+        rng = _generator(cfg.seed, method.name)
+        model = method.build_model(motion_scale(self.tasks[0].train))
+        optimiser = torch.optim.Adam(model.parameters(), lr=cfg.lr) if method.trains else None
+        n = len(self.tasks)
+        result = Result([t.name for t in self.tasks], {m: np.full((n, n), np.nan) for m in METRICS})
+        for i, task in enumerate(self.tasks):
+            seen = [t.train for t in self.tasks[:i]] if method.sees_old_tasks else []
+            ctx = TaskContext(i, task.name, task.train, model, optimiser, rng, seen)
+            if method.trains:
+                self._train_task(ctx)
+            for j, other in enumerate(self.tasks):
+                scores = evaluate(model, other.test, cfg.k, cfg.seed + j, cfg.eval_batch_scenes)
+                for metric in METRICS:
+                    result.matrices[metric][i, j] = scores[metric]
+            result.summaries.append(method.summary())
+            self._notify(
+                "task_end",
+                {
+                    "task": i,
+                    "name": task.name,
+                    "row": {m: result.matrices[m][i].tolist() for m in METRICS},
+                },
+            )
+            if self.checkpoint_dir is not None and method.trains:
+                self._save(model, optimiser, rng, i)
+        result.history = self.history
+        return result
+
+    def _train_task(self, ctx: TaskContext) -> None:
+        cfg, method, model = self.config, self.method, ctx.model
+        model.train()
+        method.before_task(ctx)
+        data = method.training_windows(ctx)
+        for epoch in self.progress(
+            range(cfg.epochs), desc=f"{method.name} {ctx.name}", leave=False
+        ):
+            totals: dict[str, float] = {}
+            steps = 0
+            for batch in batches(data, cfg.batch_scenes, ctx.rng):
+                loss, parts = model.loss(batch)
+                extra = method.extra_loss(model)
+                if extra is not None:
+                    loss = loss + extra
+                    parts["penalty"] = extra.item()
+                ctx.optimiser.zero_grad()
+                loss.backward()
+                ctx.optimiser.step()
+                for key, value in parts.items():
+                    totals[key] = totals.get(key, 0.0) + value
+                steps += 1
+            method.after_epoch(ctx, epoch)
+            record = {
+                "task": ctx.index,
+                "epoch": epoch,
+                **{k: v / max(steps, 1) for k, v in totals.items()},
+            }
+            if cfg.val_every and (epoch + 1) % cfg.val_every == 0:
+                for seen in self.tasks[: ctx.index + 1]:
+                    if seen.val is not None:
+                        record[f"val_ade/{seen.name}"] = evaluate(
+                            model, seen.val, 1, cfg.seed, cfg.eval_batch_scenes
+                        )["ade"]
+            self.history.append(record)
+            self._notify("epoch_end", record)
+        method.after_task(ctx)
+
+    def _save(self, model, optimiser, rng: np.random.Generator, index: int) -> None:
+        """Model, optimiser, method state (e.g. the queue) and RNG states after task ``index``."""
+        state = {
+            "task": index,
+            "model": model.state_dict(),
+            "optimiser": optimiser.state_dict(),
+            "method": self.method.state_dict(model),
+            "torch_rng": torch.get_rng_state(),
+            "numpy_rng": rng.bit_generator.state,
+        }
+        path = self.checkpoint_dir / f"task_{index:02d}.pt"
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".pt.tmp")
+        torch.save(state, tmp)
+        os.replace(tmp, path)
+
+
+def load_checkpoint(path: Path) -> dict[str, Any]:
+    """Read a task checkpoint safely (tensors and plain values only)."""
+    return torch.load(path, weights_only=True)

@@ -1,0 +1,191 @@
+"""``python -m sim.run``: generate a curriculum, train every method through it, report.
+
+Writes under ``runs/<scenario>/`` (or ``--out``): ``run_card.json`` (resolved configuration,
+versions, data hashes), ``report.md``, ``matrices/*.csv``, ``checkpoints/``, and ``metrics.json``,
+the machine-readable contract (per method: best-of-K joint ``ade``/``fde``, single-sample
+``ade_k1``/``fde_k1``, ``avg_seen_ade``, ``forgetting_ade``, ``seeds``; row i is after task i).
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import re
+import sys
+import time
+from dataclasses import asdict
+from importlib import metadata
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from c2inet.backbones import BACKBONES
+from c2inet.methods.base import get_method
+from c2inet.model import ModelConfig
+from c2inet.report import markdown_report, matrix_csv, summarise, text_table
+from c2inet.trainer import ContinualTrainer, Task, TrainConfig
+from sim.cli import guarded, parser
+from sim.domains import build_domain
+from sim.errors import InputError
+from sim.families import Splits
+from sim.generate import domain_summary
+from sim.io import write_text_atomic
+from sim.scenario import DomainSpec, parse_scenario
+
+DEFAULT_METHODS = "c2inet-online,finetune,cv"
+QUICK_SPLITS = Splits(train=12, val=4, test=6)
+QUICK_WINDOWS = 24  # at most this many windows per split in --quick runs (real data)
+
+
+def run_folder(scenario: str) -> Path:
+    """``runs/<scenario>`` with every character outside [A-Za-z0-9._,+-] replaced by '_'."""
+    name = re.sub(r"[^A-Za-z0-9._,+-]", "_", scenario).strip(".") or "scenario"
+    return Path("runs") / name
+
+
+def make_tasks(
+    curriculum: list[DomainSpec], seed: int, quick: bool, cache: Path
+) -> tuple[list[Task], list]:
+    """Domains of the curriculum as learner tasks (windows per split)."""
+    tasks, domains = [], []
+    for spec in tqdm(curriculum, desc="domains", unit="domain", file=sys.stderr, leave=False):
+        domain = build_domain(spec, seed, cache, QUICK_SPLITS if quick else None)
+        splits = {}
+        for split in ("train", "val", "test"):
+            windows = domain.windows(split)
+            if windows is not None and quick and len(windows) > QUICK_WINDOWS:
+                windows = windows.subset(np.arange(QUICK_WINDOWS))
+            splits[split] = windows
+        if splits["train"] is None or splits["test"] is None:
+            raise InputError(f"domain {domain.name}: no 20-frame window in its train or test split")
+        tasks.append(Task(domain.name, splits["train"], splits["val"], splits["test"]))
+        domains.append(domain)
+    return tasks, domains
+
+
+def versions() -> dict[str, str]:
+    out = {"python": platform.python_version()}
+    for package in ("torch", "numpy", "pymunk", "rerun-sdk", "highway-env", "c2i-testbed"):
+        try:
+            out[package] = metadata.version(package)
+        except metadata.PackageNotFoundError:
+            out[package] = "missing"
+    return out
+
+
+def parse_methods(text: str) -> list[str]:
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    if not names:
+        raise InputError("--methods: no method named")
+    for name in names:
+        try:
+            get_method(name)
+        except KeyError as error:
+            raise InputError(f"--methods: {error.args[0]}") from None
+    if len(set(names)) != len(names):
+        raise InputError(f"--methods: a method is named twice in {text!r}")
+    return names
+
+
+@guarded
+def main(argv: list[str] | None = None) -> int:
+    p = parser("sim.run", __doc__.splitlines()[0])
+    p.add_argument(
+        "--methods", default=DEFAULT_METHODS, help=f"comma-separated (default {DEFAULT_METHODS})"
+    )
+    p.add_argument("--backbone", choices=sorted(BACKBONES), default="stgat")
+    p.add_argument("--epochs", type=int, default=None, help="epochs per task (default 20, quick 2)")
+    p.add_argument(
+        "--seeds", type=int, default=1, help="seeds per method; cells become mean and std"
+    )
+    p.add_argument(
+        "--k", type=int, default=None, help="samples for best-of-K (default 20, quick 5)"
+    )
+    p.add_argument("--out", type=Path, default=None, help="output folder (default runs/<scenario>)")
+    p.add_argument("--cache", type=Path, default=Path(".cache/domains"), help="domain cache folder")
+    p.add_argument("--quick", action="store_true", help="tiny sizes, for smoke tests")
+    args = p.parse_args(argv)
+    if args.seeds < 1 or args.seeds > 100:
+        raise InputError(f"--seeds {args.seeds}: must be between 1 and 100")
+    epochs = args.epochs if args.epochs is not None else (2 if args.quick else 20)
+    k = args.k if args.k is not None else (5 if args.quick else 20)
+    if not 0 <= epochs <= 10_000 or not 1 <= k <= 1000:
+        raise InputError("--epochs must be in [0, 10000] and --k in [1, 1000]")
+    methods = parse_methods(args.methods)
+    curriculum = parse_scenario(args.scenario, args.scenarios_dir)
+    out = args.out or run_folder(args.scenario)
+    started = time.perf_counter()
+    tasks, domains = make_tasks(curriculum, args.seed, args.quick, args.cache)
+    one_family = len({s.family.name for s in curriculum}) == 1
+    labels = [s.label if one_family else s.name for s in curriculum]
+    model_config = ModelConfig(backbone=args.backbone)
+
+    results: dict[str, dict] = {}
+    jobs = [(m, s) for m in methods for s in range(args.seeds)]
+    runs: dict[str, list] = {m: [] for m in methods}
+    with tqdm(total=len(jobs) * len(tasks), desc="tasks", unit="task", file=sys.stderr) as bar:
+        for name, seed_index in jobs:
+            config = TrainConfig(epochs=epochs, k=k, seed=args.seed + seed_index)
+            trainer = ContinualTrainer(
+                get_method(name)(model_config),
+                tasks,
+                config,
+                checkpoint_dir=out / "checkpoints" / name / f"seed_{seed_index}",
+                observers=[lambda event, _data: bar.update(1) if event == "task_end" else None],
+                progress=lambda it, **kw: tqdm(it, file=sys.stderr, unit="epoch", **kw),
+            )
+            runs[name].append(trainer.run())
+    for name in methods:
+        results[name] = summarise(
+            [r.matrices for r in runs[name]], [r.summaries for r in runs[name]]
+        )
+        results[name]["history"] = runs[name][0].history
+    wall = time.perf_counter() - started
+
+    task_names = [t.name for t in tasks]
+    metrics = {
+        "scenario": args.scenario,
+        "tasks": task_names,
+        "labels": labels,
+        "k": k,
+        "seed": args.seed,
+        "epochs": epochs,
+        "wall_seconds": round(wall, 1),
+        "methods": results,
+    }
+    write_text_atomic(out / "metrics.json", json.dumps(metrics, indent=1) + "\n")
+    for name, result in results.items():
+        for key in ("ade", "fde", "ade_k1", "fde_k1", "ade_agent", "fde_agent"):
+            write_text_atomic(
+                out / "matrices" / f"{name}_{key}.csv", matrix_csv(result[key], task_names)
+            )
+    run_card = {
+        "scenario": args.scenario,
+        "seed": args.seed,
+        "seeds": args.seeds,
+        "methods": methods,
+        "quick": args.quick,
+        "model": asdict(model_config),
+        "train": asdict(TrainConfig(epochs=epochs, k=k, seed=args.seed)),
+        "versions": versions(),
+        "domains": [domain_summary(d) for d in domains],
+        "windows": {
+            t.name: {
+                s: 0 if getattr(t, s) is None else len(getattr(t, s))
+                for s in ("train", "val", "test")
+            }
+            for t in tasks
+        },
+    }
+    write_text_atomic(out / "run_card.json", json.dumps(run_card, indent=1) + "\n")
+    write_text_atomic(
+        out / "report.md", markdown_report(args.scenario, task_names, labels, k, results)
+    )
+    print(text_table(results, labels))
+    print(f"wall time {wall:.0f} s; wrote {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

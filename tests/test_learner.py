@@ -1,0 +1,126 @@
+"""The learner: batching without leakage, method hooks, checkpoints, and learning itself."""
+
+import numpy as np
+import pytest
+import torch
+
+from c2inet.batch import make_batch
+from c2inet.data import Windows
+from c2inet.methods.base import METHODS, TaskContext, get_method
+from c2inet.model import C2INetModel, ModelConfig, Predictor
+from c2inet.trainer import ContinualTrainer, Task, TrainConfig, load_checkpoint
+from sim.domains import build_domain
+from sim.families import Splits
+from sim.scenario import parse_scenario
+
+
+def toy_windows(scenes=12, seed=0) -> Windows:
+    rng = np.random.default_rng(seed)
+    counts = rng.integers(1, 5, scenes)
+    start = rng.normal(size=(counts.sum(), 1, 2))
+    velocity = rng.normal(0, 0.4, size=(counts.sum(), 1, 2))
+    positions = start + velocity * np.arange(20)[None, :, None]
+    return Windows(positions.astype(np.float32), np.concatenate([[0], np.cumsum(counts)]))
+
+
+def test_changing_future_frames_never_changes_model_inputs():
+    windows = toy_windows()
+    altered = Windows(windows.positions.copy(), windows.scene_start)
+    altered.positions[:, 8:] += 100.0
+    a, b = make_batch(windows), make_batch(altered)
+    torch.testing.assert_close(a.obs_rel, b.obs_rel)
+    assert not torch.equal(a.fut_rel, b.fut_rel)
+    for model in (Predictor(ModelConfig(), 0.4), C2INetModel(ModelConfig(), 0.4)):
+        torch.testing.assert_close(model.context(a), model.context(b))
+
+
+def test_padding_round_trips_agents_to_scene_slots():
+    batch = make_batch(toy_windows())
+    x = torch.arange(len(batch.scene_of), dtype=torch.float32)[:, None]
+    padded, mask = batch.pad(x)
+    assert mask.sum() == len(x) and padded.shape[:2] == (batch.num_scenes, batch.max_agents)
+    torch.testing.assert_close(batch.unpad(padded), x)
+
+
+def test_graph_attention_stays_inside_each_scene():
+    windows = toy_windows(4)
+    model = Predictor(ModelConfig(), 0.4)
+    base = model.context(make_batch(windows))
+    moved = Windows(windows.positions.copy(), windows.scene_start)
+    last = slice(windows.scene_start[-2], windows.scene_start[-1])
+    moved.positions[last] += (
+        np.random.default_rng(1).normal(size=moved.positions[last].shape).astype(np.float32)
+    )
+    after = model.context(make_batch(moved))
+    first_scenes = slice(0, windows.scene_start[-2])
+    torch.testing.assert_close(base[first_scenes], after[first_scenes])
+
+
+def test_ewc_penalty_is_zero_at_the_anchor_and_positive_away():
+    ewc = get_method("ewc")(ModelConfig())
+    model = ewc.build_model(0.4)
+    ctx = TaskContext(0, "t", toy_windows(), model, None, np.random.default_rng(0))
+    ewc.after_task(ctx)
+    assert ewc.penalty(model).item() == 0.0
+    with torch.no_grad():
+        next(model.parameters()).add_(0.5)
+    assert ewc.penalty(model).item() > 0
+
+
+def test_coresets_buffer_respects_its_size():
+    method = get_method("coresets")(ModelConfig(), {"per_task": 5})
+    rng = np.random.default_rng(0)
+    for index, scenes in enumerate((12, 3, 8)):
+        method.after_task(TaskContext(index, "t", toy_windows(scenes, seed=index), None, None, rng))
+    assert [len(w) for w in method.buffer] == [5, 3, 5]
+    current = toy_windows(7)
+    assert len(method.training_windows(TaskContext(3, "t", current, None, None, rng))) == 7 + 13
+
+
+def tiny_tasks(scenario="crowd_noise_0.1,0.2", train=8):
+    tasks = []
+    for spec in parse_scenario(scenario):
+        d = build_domain(spec, 0, splits=Splits(train, 2, 3))
+        tasks.append(Task(d.name, d.windows("train"), d.windows("val"), d.windows("test")))
+    return tasks
+
+
+@pytest.mark.parametrize(
+    "name", sorted(["finetune", "ewc", "coresets", "c2inet-online", "joint", "cv"])
+)
+def test_every_method_meets_the_contract(tmp_path, name):
+    assert name in METHODS or get_method(name)
+    method = get_method(name)(ModelConfig())
+    result = ContinualTrainer(
+        method, tiny_tasks(), TrainConfig(epochs=2, k=3), checkpoint_dir=tmp_path
+    ).run()
+    for matrix in result.matrices.values():
+        assert matrix.shape == (2, 2) and np.isfinite(matrix).all()
+    assert np.all(result.matrices["ade"] <= result.matrices["ade_k1"] + 1e-9)
+    assert np.all(result.matrices["ade_agent"] <= result.matrices["ade"] + 1e-9)
+    if method.trains:
+        state = load_checkpoint(tmp_path / "task_01.pt")
+        assert state["task"] == 1 and "model" in state and "numpy_rng" in state
+        if name == "c2inet-online":
+            assert set(state["method"]["queue"]) == {"means", "logvars", "weights"}
+            assert result.summaries[-1]["queue_size"] >= 2
+        assert {r["task"] for r in result.history} == {0, 1}
+
+
+def test_same_seed_same_training_on_cpu():
+    runs = [
+        ContinualTrainer(
+            get_method("finetune")(ModelConfig()), tiny_tasks(), TrainConfig(epochs=1, k=2)
+        ).run()
+        for _ in range(2)
+    ]
+    np.testing.assert_array_equal(runs[0].matrices["ade"], runs[1].matrices["ade"])
+
+
+@pytest.mark.parametrize("name", ["finetune", "ewc", "coresets", "c2inet-online", "joint"])
+def test_trained_methods_beat_constant_velocity_on_the_newest_task(name):
+    tasks = tiny_tasks("crowd_noise_0.5,0.6", train=80)
+    config = TrainConfig(epochs=6, k=20)
+    learned = ContinualTrainer(get_method(name)(ModelConfig()), tasks, config).run()
+    floor = ContinualTrainer(get_method("cv")(ModelConfig()), tasks, config).run()
+    assert learned.matrices["ade"][-1, -1] < floor.matrices["ade"][-1, -1]

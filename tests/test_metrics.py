@@ -1,0 +1,53 @@
+"""Metrics against hand-computed cases."""
+
+import numpy as np
+import pytest
+
+from c2inet.metrics import (
+    average_seen,
+    backward_transfer,
+    best_of_k,
+    displacement_errors,
+    evaluate_predictions,
+    forgetting,
+)
+
+
+def test_displacement_errors_by_hand():
+    truth = np.zeros((2, 1, 2))  # two future steps, one agent at the origin
+    pred = np.array([[[[3.0, 4.0]], [[0.0, 1.0]]]])  # distances 5 then 1
+    ade, fde = displacement_errors(pred, truth)
+    assert ade.tolist() == [[3.0]] and fde.tolist() == [[1.0]]
+
+
+def test_joint_and_per_agent_minimum_differ():
+    # one scene, two agents, two samples: sample 0 is good for agent 0, sample 1 for agent 1
+    errors = np.array([[1.0, 4.0], [3.0, 1.5]])
+    scene_start = np.array([0, 2])
+    assert best_of_k(errors, scene_start, "agent").tolist() == [1.0, 1.5]  # mean 1.25
+    # joint: sums 5.0 and 4.5, so sample 1 for the whole scene
+    assert best_of_k(errors, scene_start, "joint").tolist() == [3.0, 1.5]  # mean 2.25
+
+
+def test_joint_minimum_is_taken_per_scene():
+    errors = np.array([[1.0, 1.0, 9.0], [2.0, 2.0, 1.0]])
+    joint = best_of_k(errors, np.array([0, 2, 3]), "joint")
+    assert joint.tolist() == [1.0, 1.0, 1.0]
+    with pytest.raises(ValueError):
+        best_of_k(errors, np.array([0, 3]), "scene")
+
+
+def test_evaluate_predictions_labels_every_aggregation():
+    truth = np.zeros((1, 2, 2))
+    pred = np.array([[[[1.0, 0.0], [4.0, 0.0]]], [[[3.0, 0.0], [1.5, 0.0]]]])  # (K=2, T=1, N=2, 2)
+    scores = evaluate_predictions(pred, truth, np.array([0, 2]))
+    assert scores["ade"] == pytest.approx(2.25) and scores["ade_agent"] == pytest.approx(1.25)
+    assert scores["ade_k1"] == pytest.approx(2.5) and scores["fde"] == pytest.approx(2.25)
+
+
+def test_continual_scores_by_hand():
+    r = np.array([[1.0, 5.0, 5.0], [2.0, 1.0, 5.0], [1.5, 3.0, 2.0]])
+    np.testing.assert_allclose(average_seen(r), [1.0, 1.5, (1.5 + 3.0 + 2.0) / 3])
+    np.testing.assert_allclose(forgetting(r), [2.0 - 1.0, 3.0 - 1.0])
+    assert backward_transfer(r) == pytest.approx(((1.5 - 1.0) + (3.0 - 1.0)) / 2)
+    assert backward_transfer(r[:1, :1]) == 0.0

@@ -1,0 +1,119 @@
+"""The prior queue: densities, weights, Eq 8 / Eq 9 fits, pruning, the symmetric KL."""
+
+import math
+
+import pytest
+import torch
+
+from c2inet.prior import (
+    GaussianMixture,
+    PriorQueue,
+    QueueConfig,
+    gaussian_log_prob,
+    mix,
+    moment_match,
+    symmetric_kl,
+)
+
+
+def random_mixture(k=4, d=3, seed=0) -> GaussianMixture:
+    g = torch.Generator().manual_seed(seed)
+    w = torch.rand(k, generator=g) + 0.1
+    return GaussianMixture(
+        torch.randn(k, d, generator=g) * 2, torch.randn(k, d, generator=g) * 0.3, w / w.sum()
+    )
+
+
+def test_log_density_matches_a_brute_force_sum():
+    m = random_mixture()
+    x = torch.randn(7, 3)
+    brute = torch.zeros(7)
+    for k in range(len(m)):
+        var = m.logvars[k].exp()
+        density = torch.exp(-0.5 * ((x - m.means[k]) ** 2 / var).sum(-1)) / torch.sqrt(
+            (2 * math.pi * var).prod()
+        )
+        brute += m.weights[k] * density
+    torch.testing.assert_close(m.log_prob(x), brute.log(), rtol=1e-5, atol=1e-5)
+
+
+def test_log_density_is_finite_far_from_every_component():
+    m = random_mixture()
+    assert torch.isfinite(m.log_prob(torch.full((2, 3), 1e3))).all()
+
+
+def test_weights_sum_to_one_after_adds_and_removes():
+    q = PriorQueue(3)
+    q.reset(torch.zeros(3), torch.zeros(3))
+    for k in range(5):
+        q.add(torch.full((3,), float(k)), torch.zeros(3), new_weight=0.2 + 0.1 * k)
+        assert q.mixture.weights.sum().item() == pytest.approx(1.0)
+    q.remove(2)
+    assert len(q) == 5 and q.mixture.weights.sum().item() == pytest.approx(1.0)
+    uniform = PriorQueue(3, QueueConfig(weight_opt=False))
+    uniform.reset(torch.zeros(3), torch.zeros(3))
+    uniform.add(torch.ones(3), torch.zeros(3), new_weight=0.9)
+    assert uniform.mixture.weights.tolist() == [0.5, 0.5]
+
+
+def test_pruning_keeps_at_most_capacity_and_drops_the_redundant_component():
+    q = PriorQueue(2, QueueConfig(capacity=3))
+    q.reset(torch.tensor([0.0, 0.0]), torch.zeros(2))
+    q.add(torch.tensor([10.0, 0.0]), torch.zeros(2), 0.4)
+    q.add(torch.tensor([0.0, 10.0]), torch.zeros(2), 0.3)
+    q.add(torch.tensor([0.01, 0.0]), torch.zeros(2), 0.2)  # a near copy of the first
+    removed = q.prune(torch.Generator().manual_seed(0))
+    assert len(q) == 3 and len(removed) == 1 and removed[0] in (0, 3)
+    off = PriorQueue(2, QueueConfig(capacity=1, pruning=False))
+    off.reset(torch.zeros(2), torch.zeros(2))
+    off.add(torch.ones(2), torch.zeros(2), 0.5)
+    assert off.prune() == [] and len(off) == 2
+
+
+def test_eq9_weight_scores_at_least_as_well_as_one_half():
+    q = PriorQueue(2)
+    q.reset(torch.tensor([-2.0, 0.0]), torch.zeros(2))
+    new_mean, new_logvar = torch.tensor([2.0, 0.0]), torch.zeros(2)
+    target = GaussianMixture(
+        torch.tensor([[-2.0, 0.0], [2.0, 0.0]]), torch.zeros(2, 2), torch.tensor([0.2, 0.8])
+    )
+    g = torch.Generator().manual_seed(1)
+    weight = q.fit_weight(new_mean, new_logvar, target, g)
+    samples = target.sample(4000, torch.Generator().manual_seed(2))
+
+    def objective(w):
+        return torch.logaddexp(
+            math.log(1 - w) + q.log_prob(samples),
+            math.log(w) + gaussian_log_prob(samples, new_mean, new_logvar),
+        ).mean()
+
+    assert objective(weight) >= objective(0.5)
+    assert weight == pytest.approx(0.8, abs=0.05)
+
+
+def test_eq8_component_goes_where_the_target_is_poorly_covered():
+    q = PriorQueue(2, QueueConfig(fit_steps=300))
+    q.reset(torch.tensor([0.0, 0.0]), torch.zeros(2))
+    target = mix(
+        [q.mixture, GaussianMixture(torch.tensor([[4.0, 4.0]]), torch.zeros(1, 2), torch.ones(1))],
+        [0.5, 0.5],
+    )
+    torch.manual_seed(0)
+    mean, _ = q.fit_component(target, torch.Generator().manual_seed(0))
+    assert torch.linalg.norm(mean - torch.tensor([4.0, 4.0])) < 1.0
+
+
+def test_symmetric_kl_is_symmetric_non_negative_and_zero_on_equals():
+    a, b = random_mixture(2, 4, seed=3), random_mixture(2, 4, seed=4)
+    ab = symmetric_kl(a.means[0], a.logvars[0], b.means[1], b.logvars[1])
+    ba = symmetric_kl(b.means[1], b.logvars[1], a.means[0], a.logvars[0])
+    assert ab.item() == pytest.approx(ba.item()) and ab.item() > 0
+    assert symmetric_kl(a.means[0], a.logvars[0], a.means[0], a.logvars[0]).item() == pytest.approx(
+        0.0, abs=1e-6
+    )
+    assert random_mixture().mean_pairwise_skl().item() >= 0
+
+
+def test_moment_match_of_two_gaussians():
+    mean, logvar = moment_match(torch.tensor([[-1.0], [1.0]]), torch.zeros(2, 1))
+    assert mean.item() == pytest.approx(0.0) and logvar.exp().item() == pytest.approx(2.0)

@@ -1,0 +1,93 @@
+"""``python -m sim.run`` end to end on --quick sizes: files, shapes, finite values, errors."""
+
+import csv
+import json
+import math
+import subprocess
+import sys
+
+import pytest
+
+
+def run(*args):
+    return subprocess.run(
+        [sys.executable, "-m", "sim.run", *args], capture_output=True, text=True, check=False
+    )
+
+
+def test_quick_run_writes_every_output(tmp_path):
+    out = tmp_path / "run"
+    result = run(
+        "--scenario",
+        "crowd_noise_0.1..0.3",
+        "--quick",
+        "--out",
+        str(out),
+        "--methods",
+        "c2inet-online,finetune,cv",
+        "--cache",
+        str(tmp_path / "cache"),
+    )
+    assert result.returncode == 0, result.stderr
+    assert "0.1" in result.stdout and ":0.3" in result.stdout and "c2inet-online" in result.stdout
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["scenario"] == "crowd_noise_0.1..0.3" and metrics["k"] == 5
+    assert metrics["tasks"] == ["crowd_noise_0.1", "crowd_noise_0.2", "crowd_noise_0.3"]
+    for name in ("c2inet-online", "finetune", "cv"):
+        m = metrics["methods"][name]
+        for key in ("ade", "fde", "ade_k1", "fde_k1"):
+            assert len(m[key]) == 3 and all(len(row) == 3 for row in m[key])
+            assert all(math.isfinite(v) for row in m[key] for v in row)
+        assert m["avg_seen_ade"][1] == pytest.approx(
+            (m["ade"][1][0] + m["ade"][1][1]) / 2, abs=1e-5
+        )
+        assert math.isfinite(m["forgetting_ade"]) and m["seeds"] == 1
+    assert len(metrics["methods"]["c2inet-online"]["queue_size"]) == 3
+    with open(out / "matrices" / "finetune_ade.csv") as f:
+        rows = list(csv.reader(f))
+    assert rows[0] == ["after", *metrics["tasks"]] and len(rows) == 4
+    card = json.loads((out / "run_card.json").read_text())
+    assert card["versions"]["torch"].startswith("2.13") and len(card["domains"]) == 3
+    assert all(d["hash"] for d in card["domains"])
+    assert (out / "report.md").read_text().startswith("# Continual run")
+    assert sorted(p.name for p in (out / "checkpoints" / "finetune" / "seed_0").iterdir()) == [
+        "task_00.pt",
+        "task_01.pt",
+        "task_02.pt",
+    ]
+
+
+def test_seeds_give_mean_and_std(tmp_path):
+    result = run(
+        "--scenario",
+        "crowd_radius_0.2,0.4",
+        "--quick",
+        "--seeds",
+        "2",
+        "--methods",
+        "finetune",
+        "--out",
+        str(tmp_path),
+        "--cache",
+        str(tmp_path / "cache"),
+    )
+    assert result.returncode == 0, result.stderr
+    m = json.loads((tmp_path / "metrics.json").read_text())["methods"]["finetune"]
+    assert m["seeds"] == 2 and any(v > 0 for row in m["ade_std"] for v in row)
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--scenario", "crowd_noise_0.1", "--methods", "sgd"], "unknown method"),
+        (["--scenario", "crowd_noise_0.1", "--backbone", "resnet"], "invalid choice"),
+        (["--scenario", "crowd_noise_0.1", "--seeds", "0"], "--seeds"),
+        (["--scenario", "crowd_noise_0.1", "--k", "0"], "--k"),
+        (["--scenario", "crowd_noise_1..0"], "reversed"),
+    ],
+)
+def test_bad_options_give_one_error_line(args, message):
+    result = run(*args)
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:") and message in lines[0]
