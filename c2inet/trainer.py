@@ -138,6 +138,7 @@ class ContinualTrainer:
                     "task": i,
                     "name": task.name,
                     "row": {m: result.matrices[m][i].tolist() for m in METRICS},
+                    "model": model,
                 },
             )
             if self.checkpoint_dir is not None and method.trains:

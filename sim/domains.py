@@ -64,3 +64,11 @@ def build_domain(
     if cached:
         write_parquet(domain, cached)
     return domain
+
+
+def rollout_scene(spec: DomainSpec, root_seed: int, frames: int):
+    """A longer episode of the domain for playback (its own child seed), or None."""
+    generator = get_generator(spec.family.generator)()
+    seed = domain_seed(root_seed, spec)
+    seed = np.random.SeedSequence(seed.entropy, spawn_key=(*seed.spawn_key, 99))
+    return generator.rollout(spec.knobs(), seed, frames)

@@ -26,16 +26,22 @@ from c2inet.model import ModelConfig
 from c2inet.report import markdown_report, matrix_csv, summarise, text_table
 from c2inet.trainer import ContinualTrainer, Task, TrainConfig
 from sim.cli import guarded, parser
-from sim.domains import build_domain
+from sim.data import cut_windows
+from sim.domains import build_domain, rollout_scene
 from sim.errors import InputError
 from sim.families import Splits
 from sim.generate import domain_summary
 from sim.io import write_text_atomic
 from sim.scenario import DomainSpec, parse_scenario
+from viz import figures
+from viz.observer import RecordingObserver, Showcase, log_truth
+from viz.recording import RunRecorder
 
 DEFAULT_METHODS = "c2inet-online,finetune,cv"
 QUICK_SPLITS = Splits(train=12, val=4, test=6)
 QUICK_WINDOWS = 24  # at most this many windows per split in --quick runs (real data)
+SAMPLE_SCENES = 4  # test scenes per task drawn in the recording
+ROLLOUT_FRAMES = 50  # frames of the longer episode played per domain (20 s at 0.4 s)
 
 
 def run_folder(scenario: str) -> Path:
@@ -62,6 +68,28 @@ def make_tasks(
         tasks.append(Task(domain.name, splits["train"], splits["val"], splits["test"]))
         domains.append(domain)
     return tasks, domains
+
+
+def make_showcases(curriculum: list[DomainSpec], tasks: list[Task], seed: int) -> tuple[list, dict]:
+    """Per task: evenly spaced sample test scenes and a longer rollout cut into windows.
+
+    Returns the showcases and, per task, the rollout's positions and agent ids.
+    """
+    showcases, rollouts = [], {}
+    for spec, task in zip(curriculum, tasks, strict=True):
+        count = min(SAMPLE_SCENES, len(task.test))
+        scenes = task.test.subset(np.linspace(0, len(task.test) - 1, count).astype(int))
+        scene = rollout_scene(spec, seed, ROLLOUT_FRAMES)
+        windows = cut_windows(scene) if scene is not None else None
+        show = Showcase(task.name, scenes)
+        if windows is not None:
+            present = ~np.isnan(scene.positions[..., 0])
+            starts = [t for t in range(scene.num_frames - 19) if (present[t : t + 20].all(0)).any()]
+            show.rollout_windows = windows
+            show.rollout_frames = np.array(starts) + windows.obs_len - 1
+            rollouts[task.name] = (scene.positions, scene.agent_ids)
+        showcases.append(show)
+    return showcases, rollouts
 
 
 def versions() -> dict[str, str]:
@@ -105,7 +133,21 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, default=None, help="output folder (default runs/<scenario>)")
     p.add_argument("--cache", type=Path, default=Path(".cache/domains"), help="domain cache folder")
     p.add_argument("--quick", action="store_true", help="tiny sizes, for smoke tests")
+    p.add_argument("--no-record", action="store_true", help="do not write recording.rrd")
+    p.add_argument(
+        "--rerun",
+        default=None,
+        metavar="spawn|connect[=URL]",
+        help="also stream live to a viewer: spawn one, or connect to one (default URL "
+        "rerun+http://127.0.0.1:9876/proxy)",
+    )
     args = p.parse_args(argv)
+    if (
+        args.rerun is not None
+        and args.rerun != "spawn"
+        and args.rerun.partition("=")[0] != "connect"
+    ):
+        raise InputError(f"--rerun {args.rerun!r}: expected spawn, connect or connect=URL")
     if args.seeds < 1 or args.seeds > 100:
         raise InputError(f"--seeds {args.seeds}: must be between 1 and 100")
     epochs = args.epochs if args.epochs is not None else (2 if args.quick else 20)
@@ -121,18 +163,37 @@ def main(argv: list[str] | None = None) -> int:
     labels = [s.label if one_family else s.name for s in curriculum]
     model_config = ModelConfig(backbone=args.backbone)
 
+    recorder = None
+    if not args.no_record or args.rerun:
+        recorder = RunRecorder.create(
+            "c2i-testbed",
+            f"{args.scenario}-seed{args.seed}",
+            None if args.no_record else out / "recording.rrd",
+            args.rerun,
+        )
+        showcases, rollouts = make_showcases(curriculum, tasks, args.seed)
+        for domain in domains:
+            recorder.log_domain(domain.name, domain.knobs, domain.stats)
+        log_truth(recorder, showcases, rollouts)
+
     results: dict[str, dict] = {}
     jobs = [(m, s) for m in methods for s in range(args.seeds)]
     runs: dict[str, list] = {m: [] for m in methods}
+    drawn: dict[str, dict] = {}
     with tqdm(total=len(jobs) * len(tasks), desc="tasks", unit="task", file=sys.stderr) as bar:
         for name, seed_index in jobs:
             config = TrainConfig(epochs=epochs, k=k, seed=args.seed + seed_index)
+            observers = [lambda event, _data: bar.update(1) if event == "task_end" else None]
+            if recorder is not None and seed_index == 0:  # the first seed is drawn
+                observer = RecordingObserver(recorder, name, showcases, k, seed=args.seed)
+                observers.append(observer)
+                drawn[name] = observer.final_predictions
             trainer = ContinualTrainer(
                 get_method(name)(model_config),
                 tasks,
                 config,
                 checkpoint_dir=out / "checkpoints" / name / f"seed_{seed_index}",
-                observers=[lambda event, _data: bar.update(1) if event == "task_end" else None],
+                observers=observers,
                 progress=lambda it, **kw: tqdm(it, file=sys.stderr, unit="epoch", **kw),
             )
             runs[name].append(trainer.run())
@@ -179,9 +240,19 @@ def main(argv: list[str] | None = None) -> int:
         },
     }
     write_text_atomic(out / "run_card.json", json.dumps(run_card, indent=1) + "\n")
-    write_text_atomic(
-        out / "report.md", markdown_report(args.scenario, task_names, labels, k, results)
-    )
+    report = markdown_report(args.scenario, task_names, labels, k, results)
+    write_text_atomic(out / "report.md", report)
+    for name, result in results.items():
+        figures.error_matrix(name, result["ade"], labels, out / "figures" / f"matrix_{name}.png")
+        figures.per_task(name, result["ade"], labels, out / "figures" / f"per_task_{name}.png")
+    figures.average_seen(results, labels, out / "figures" / "average_seen.png")
+    if recorder is not None:
+        samples = {show.task: show.scenes for show in showcases}
+        figures.prediction_grid(samples, drawn, out / "figures" / "predictions.png")
+        recorder.log_run_card(
+            f"{report}\n## Run card\n\n```json\n{json.dumps(run_card, indent=1)}\n```\n"
+        )
+        recorder.close()
     print(text_table(results, labels))
     print(f"wall time {wall:.0f} s; wrote {out}")
     return 0

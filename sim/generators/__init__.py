@@ -41,6 +41,10 @@ class Generator:
         """What besides knobs, seed and sizes determines the output (e.g. input file hashes)."""
         return {}
 
+    def rollout(self, knobs: dict[str, Any], seed: np.random.SeedSequence, frames: int):
+        """One longer episode of the domain (a :class:`sim.data.Scene`) for playback, or None."""
+        return None
+
     def generate(
         self,
         name: str,

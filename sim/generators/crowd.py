@@ -302,6 +302,11 @@ class CrowdGenerator(Generator):
     version = 1
     Knobs = CrowdKnobs
 
+    def rollout(self, knobs: dict[str, Any], seed, frames: int) -> Scene:
+        options = CrowdKnobs(**{**knobs, "frames": max(frames, knobs["frames"])})
+        (positions,) = simulate(options, [seed])
+        return Scene(positions, np.arange(options.num_agents, dtype=np.int64))
+
     def generate(self, name, family, knobs: dict[str, Any], splits, seed) -> Domain:
         options = CrowdKnobs(**knobs)
         scenes: dict[str, list[Scene]] = {}

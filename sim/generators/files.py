@@ -115,6 +115,10 @@ class FilesGenerator(Generator):
             for path in knobs[split]
         }
 
+    def rollout(self, knobs: dict[str, Any], seed, frames: int) -> Scene:
+        scene = read_trajectory_file(Path(knobs["test"][0]))
+        return Scene(scene.positions[:frames], scene.agent_ids)
+
     def generate(self, name, family, knobs: dict[str, Any], splits, seed) -> Domain:
         scenes = {split: [read_trajectory_file(Path(p)) for p in knobs[split]] for split in SPLITS}
         everything = [s for split in SPLITS for s in scenes[split]]

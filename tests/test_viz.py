@@ -1,0 +1,192 @@
+"""The Rerun recording and figures of a --quick run, live streaming, and the web viewer server."""
+
+import os
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from collections import Counter
+from pathlib import Path
+
+import pytest
+from rerun.chunk import RrdReader
+
+from viz.serve import command
+
+RERUN = str(Path(sys.executable).with_name("rerun"))
+TASKS = ("crowd_noise_0.1", "crowd_noise_0.2")
+
+
+@pytest.fixture(scope="module")
+def env(tmp_path_factory):
+    """Rerun's CLI writes analytics settings under the config folder: keep them in a temp dir."""
+    return {**os.environ, "XDG_CONFIG_HOME": str(tmp_path_factory.mktemp("xdg"))}
+
+
+def quick_run(out: Path, env, *extra: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "sim.run",
+            "--scenario",
+            "crowd_noise_0.1,0.2",
+            "--quick",
+            "--methods",
+            "c2inet-online,finetune,cv",
+            "--out",
+            str(out),
+            *extra,
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+        env=env,
+    )
+
+
+def rows_per_entity(path: Path) -> Counter:
+    rows: Counter = Counter()
+    for chunk in RrdReader(str(path)).stream():
+        rows[chunk.entity_path] += chunk.num_rows
+    return rows
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory, env):
+    out = tmp_path_factory.mktemp("run")
+    result = quick_run(out, env)
+    assert result.returncode == 0, result.stderr
+    return out
+
+
+def test_recording_holds_scenes_rollouts_curves_and_queue(recorded):
+    rows = rows_per_entity(recorded / "recording.rrd")
+    for task in TASKS:
+        assert rows[f"/tasks/{task}"] == 1  # knobs and statistics as properties
+        for k in range(4):
+            scene = f"/tasks/{task}/scenes/{k}"
+            assert rows[f"{scene}/truth/agents"] == 20  # one batched row per frame
+            assert rows[f"{scene}/truth/history"] == 1 and rows[f"{scene}/truth/future"] == 1
+            for method in ("c2inet-online", "finetune", "cv"):
+                assert rows[f"{scene}/{method}/predictions"] == 2  # one per checkpoint (task)
+                assert rows[f"{scene}/{method}/best"] == 2
+        assert rows[f"/rollouts/{task}/truth/agents"] == 50
+        assert rows[f"/rollouts/{task}/finetune/predictions"] == 2 * 31  # 31 windows per checkpoint
+    assert rows["/curves/finetune/val_ade/crowd_noise_0.1"] == 4  # 2 epochs x 2 tasks
+    assert rows["/curves/finetune/val_ade/crowd_noise_0.2"] == 2
+    assert rows["/curves/finetune/matrix/ade/crowd_noise_0.2"] == 2
+    assert rows["/curves/c2inet-online/kl_c"] == 4
+    assert rows["/queue/c2inet-online/components"] == 2
+    assert rows["/run_card"] == 1
+    assert not any("/cv/" in path and "val_ade" in path for path in rows)  # cv does not train
+
+
+def test_recording_verifies_and_stays_small(recorded, env):
+    result = subprocess.run(
+        [RERUN, "rrd", "verify", str(recorded / "recording.rrd")],
+        capture_output=True,
+        text=True,
+        env=env,
+        check=False,
+    )
+    assert result.returncode == 0, result.stderr
+    assert (recorded / "recording.rrd").stat().st_size < 50e6
+
+
+def test_figures_are_written(recorded):
+    names = sorted(p.name for p in (recorded / "figures").iterdir())
+    assert names == sorted(
+        [
+            "average_seen.png",
+            "predictions.png",
+            *(
+                f"{kind}_{m}.png"
+                for kind in ("matrix", "per_task")
+                for m in ("c2inet-online", "cv", "finetune")
+            ),
+        ]
+    )
+    for path in (recorded / "figures").iterdir():
+        assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_live_stream_reaches_a_local_viewer_server(tmp_path, env):
+    port = free_port()
+    saved = tmp_path / "live.rrd"
+    server = subprocess.Popen(
+        [RERUN, "--bind", "127.0.0.1", "--port", str(port), "--save", str(saved)],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        for _ in range(100):
+            with socket.socket() as s:
+                if s.connect_ex(("127.0.0.1", port)) == 0:
+                    break
+            time.sleep(0.1)
+        result = quick_run(
+            tmp_path / "run",
+            env,
+            "--no-record",
+            "--rerun",
+            f"connect=rerun+http://127.0.0.1:{port}/proxy",
+        )
+        assert result.returncode == 0, result.stderr
+        time.sleep(1.0)
+    finally:
+        server.terminate()
+        server.wait(timeout=20)
+    assert not (tmp_path / "run" / "recording.rrd").exists()
+    rows = rows_per_entity(saved)
+    assert rows["/tasks/crowd_noise_0.2/scenes/0/finetune/predictions"] == 2
+    assert rows["/curves/finetune/val_ade/crowd_noise_0.1"] == 4
+
+
+def test_web_viewer_serves_on_loopback_only(recorded, env):
+    cmd = command(recorded / "recording.rrd", free_port(), free_port())
+    assert cmd[cmd.index("--bind") + 1] == "127.0.0.1"
+    web_port = int(cmd[cmd.index("--web-viewer-port") + 1])
+    server = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "viz.serve",
+            str(recorded / "recording.rrd"),
+            "--web-port",
+            str(web_port),
+            "--grpc-port",
+            cmd[cmd.index("--port") + 1],
+        ],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
+    try:
+        line = server.stdout.readline()
+        assert f"http://127.0.0.1:{web_port}/" in line
+        page = None
+        for _ in range(150):
+            try:
+                page = urllib.request.urlopen(f"http://127.0.0.1:{web_port}/", timeout=1).read()
+                break
+            except OSError:
+                time.sleep(0.2)
+        assert page and b"<html" in page.lower()
+    finally:
+        server.terminate()
+        server.wait(timeout=20)
+
+
+def test_bad_rerun_option_is_rejected(env, tmp_path):
+    result = quick_run(tmp_path, env, "--rerun", "broadcast")
+    assert result.returncode == 2 and "--rerun" in result.stderr

@@ -1,0 +1,100 @@
+"""The paper's figures as PNGs: error matrices, per-task ADE, averages over seen tasks, samples."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from c2inet.data import Windows  # noqa: E402
+
+
+def _save(fig, path: Path) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp.png")
+    fig.savefig(tmp, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    tmp.replace(path)
+    return path
+
+
+def error_matrix(name: str, matrix: list[list[float]], labels: list[str], path: Path) -> Path:
+    """Heat map of R[i][j]: ADE on task j after training through task i."""
+    data = np.array(matrix, dtype=float)
+    fig, ax = plt.subplots(figsize=(1.1 * len(labels) + 2, 0.9 * len(labels) + 1.5))
+    image = ax.imshow(data, cmap="viridis")
+    for i in range(len(labels)):
+        for j in range(len(labels)):
+            ax.text(j, i, f"{data[i, j]:.2f}", ha="center", va="center", color="w", fontsize=8)
+    ax.set_xticks(range(len(labels)), labels, rotation=45)
+    ax.set_yticks(range(len(labels)), labels)
+    ax.set_xlabel("evaluated on task")
+    ax.set_ylabel("after training through task")
+    ax.set_title(f"{name}: ADE (m)")
+    fig.colorbar(image, ax=ax)
+    return _save(fig, path)
+
+
+def per_task(name: str, matrix: list[list[float]], labels: list[str], path: Path) -> Path:
+    """ADE on every task as training proceeds (the paper's Figs 5 and 6)."""
+    data = np.array(matrix, dtype=float)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for j, label in enumerate(labels):
+        ax.plot(range(j, len(labels)), data[j:, j], marker="o", label=label)
+    ax.set_xticks(range(len(labels)), labels)
+    ax.set_xlabel("after training through task")
+    ax.set_ylabel("ADE (m)")
+    ax.set_title(f"{name}: per-task ADE")
+    ax.legend(fontsize=7, title="task")
+    return _save(fig, path)
+
+
+def average_seen(methods: dict[str, dict[str, Any]], labels: list[str], path: Path) -> Path:
+    """ADE averaged over the tasks seen so far, every method on one plot (Table 2 as curves)."""
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for name, m in methods.items():
+        mean, std = np.array(m["avg_seen_ade"]), np.array(m.get("avg_seen_ade_std", 0.0))
+        ax.plot(range(len(mean)), mean, marker="o", label=name)
+        ax.fill_between(range(len(mean)), mean - std, mean + std, alpha=0.15)
+    ax.set_xticks(range(len(labels)), [labels[0], *(":" + lab for lab in labels[1:])])
+    ax.set_ylabel("average ADE over seen tasks (m)")
+    ax.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def prediction_grid(
+    samples: dict[str, Windows], predictions: dict[str, dict[str, np.ndarray]], path: Path
+) -> Path:
+    """Rows: methods; columns: tasks; the first sample scene of each (the paper's Fig 8).
+
+    Grey: observed, green: truth, red: predicted samples.
+    """
+    methods, tasks = list(predictions), list(samples)
+    fig, axes = plt.subplots(
+        len(methods), len(tasks), figsize=(2.6 * len(tasks), 2.6 * len(methods)), squeeze=False
+    )
+    for r, method in enumerate(methods):
+        for c, task in enumerate(tasks):
+            ax, windows = axes[r, c], samples[task]
+            agents = slice(0, windows.scene_start[1])
+            pos, obs = windows.positions[agents], windows.obs_len
+            pred = predictions[method][task][:, agents]
+            for a in range(pos.shape[0]):
+                for k in range(pred.shape[0]):
+                    path_k = np.vstack([pos[a, obs - 1], pred[k, a]])
+                    ax.plot(path_k[:, 0], path_k[:, 1], color="tab:red", alpha=0.25, lw=0.8)
+                ax.plot(pos[a, :obs, 0], pos[a, :obs, 1], color="grey", lw=1.5)
+                ax.plot(pos[a, obs - 1 :, 0], pos[a, obs - 1 :, 1], color="tab:green", lw=1.5)
+            ax.set_aspect("equal")
+            ax.set_xticks([])
+            ax.set_yticks([])
+            if r == 0:
+                ax.set_title(task, fontsize=8)
+            if c == 0:
+                ax.set_ylabel(method, fontsize=8)
+    return _save(fig, path)

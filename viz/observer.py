@@ -1,0 +1,116 @@
+"""A trainer observer that turns training events into recording calls (no logging in training code)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import torch
+
+from c2inet.batch import make_batch
+from c2inet.data import Windows
+from c2inet.metrics import best_of_k, displacement_errors
+from viz.recording import RunRecorder
+
+
+@dataclass
+class Showcase:
+    """What is drawn for one task: sample test scenes, and a rollout cut into windows."""
+
+    task: str
+    scenes: Windows  # the same sample scenes for every method and checkpoint
+    rollout_windows: Windows | None = None
+    rollout_frames: np.ndarray | None = None  # rollout frame of each window's last observation
+
+
+@dataclass
+class RecordingObserver:
+    """Receives ``epoch_end`` and ``task_end`` events of one method's run."""
+
+    recorder: RunRecorder
+    method: str
+    showcases: list[Showcase]
+    k: int
+    rollout_k: int = 5
+    seed: int = 0
+    final_predictions: dict[str, np.ndarray] = field(default_factory=dict)  # task -> (K, A, T, 2)
+    _epochs: int = 0
+
+    def __call__(self, event: str, data: dict[str, Any]) -> None:
+        if event == "epoch_end":
+            self.recorder.log_epoch(self.method, {**data, "global_epoch": self._epochs})
+            self._epochs += 1
+        elif event == "task_end":
+            self._task_end(data)
+
+    def _predict(self, model, windows: Windows, k: int) -> np.ndarray:
+        """(K, agents, T, 2) absolute predictions, reproducible for the observer's seed."""
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(self.seed)
+            was_training = getattr(model, "training", False)
+            model.eval()
+            pred = model.predict(make_batch(windows), k).numpy()
+            model.train(was_training)
+        return pred.transpose(0, 2, 1, 3)
+
+    def _task_end(self, data: dict[str, Any]) -> None:
+        model, trained = data["model"], data["task"]
+        self.recorder.log_matrix_row(
+            self.method, trained, [s.task for s in self.showcases], data["row"]
+        )
+        queue = getattr(model, "queue", None)
+        if queue is not None:
+            self.recorder.log_queue(
+                self.method, trained, queue.mixture.means.numpy(), queue.mixture.weights.numpy()
+            )
+        for show in self.showcases:
+            windows = show.scenes
+            pred = self._predict(model, windows, self.k)
+            obs_len = windows.obs_len
+            truth = windows.positions[:, obs_len:]
+            ade, _ = displacement_errors(pred.transpose(0, 2, 1, 3), truth.transpose(1, 0, 2))
+            joint = best_of_k(ade, windows.scene_start, "joint")
+            best = np.argmin(
+                np.abs(ade - joint[None]), axis=0
+            )  # the sample the joint minimum chose
+            for s in range(len(windows)):
+                agents = slice(windows.scene_start[s], windows.scene_start[s + 1])
+                self.recorder.log_scene_predictions(
+                    show.task,
+                    s,
+                    self.method,
+                    trained,
+                    windows.positions[agents, obs_len - 1],
+                    pred[:, agents],
+                    best[agents],
+                    obs_len,
+                )
+            self.final_predictions[show.task] = pred
+            if show.rollout_windows is not None:
+                rollout = show.rollout_windows
+                pred = self._predict(model, rollout, self.rollout_k)
+                self.recorder.log_rollout_predictions(
+                    show.task,
+                    self.method,
+                    trained,
+                    show.rollout_frames,
+                    rollout.positions[:, rollout.obs_len - 1],
+                    pred,
+                    rollout.agents_per_scene,
+                )
+
+
+def log_truth(recorder: RunRecorder, showcases: list[Showcase], rollouts: dict[str, tuple]) -> None:
+    """Ground truth of every showcase: the sample scenes, and each rollout frame by frame.
+
+    ``rollouts``: task -> (positions (frames, agents, 2) with NaN where absent, agent ids).
+    """
+    for show in showcases:
+        windows = show.scenes
+        for s in range(len(windows)):
+            agents = slice(windows.scene_start[s], windows.scene_start[s + 1])
+            ids = np.arange(agents.stop - agents.start)
+            recorder.log_scene_truth(show.task, s, windows.positions[agents], ids, windows.obs_len)
+        if show.task in rollouts:
+            recorder.log_rollout_truth(show.task, *rollouts[show.task])

@@ -1,0 +1,225 @@
+"""A run as a Rerun recording: a thin mapping from windows, predictions and metrics to archetypes.
+
+Timelines: ``frame`` (positions within a scene or rollout), ``task`` (the task the model has
+trained through, so scrubbing it shows old tasks degrade or hold) and ``epoch`` (training curves,
+counted across the whole curriculum). Entity paths:
+
+- ``/run_card`` (TextDocument), ``/tasks/<task>`` (domain knobs and statistics as properties)
+- ``/tasks/<task>/scenes/<k>/truth/{agents,history,future}`` and
+  ``/tasks/<task>/scenes/<k>/<method>/{predictions,best}``
+- ``/rollouts/<task>/truth/agents`` and ``/rollouts/<task>/<method>/predictions``
+- ``/curves/<method>/...`` (Scalars), ``/queue/<method>/...`` (C2INet's prior queue)
+
+Everything is logged batched: one archetype per entity per frame, never one entity per agent.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+GREY, GREEN, RED, ORANGE = (150, 150, 150), (40, 170, 60), (220, 60, 50), (255, 150, 0)
+
+
+def default_blueprint() -> rrb.Blueprint:
+    """The 2-D scene view beside the time series and the run card."""
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Spatial2DView(origin="/", contents=["/tasks/**", "/rollouts/**"], name="scenes"),
+            rrb.Vertical(
+                rrb.TimeSeriesView(origin="/curves", name="curves"),
+                rrb.TextDocumentView(origin="/run_card", name="run card"),
+            ),
+            column_shares=[3, 2],
+        ),
+        collapse_panels=True,
+    )
+
+
+def _strips(paths: np.ndarray) -> list[np.ndarray]:
+    """(..., T, 2) -> a flat list of (T, 2) polylines."""
+    return list(paths.reshape(-1, *paths.shape[-2:]))
+
+
+class RunRecorder:
+    """Writes a run to one recording stream (a file, a live viewer, or both)."""
+
+    def __init__(self, stream: rr.RecordingStream):
+        self.rec = stream
+        self.epoch = 0
+
+    @classmethod
+    def create(
+        cls, app_id: str, recording_id: str, path: Path | None, target: str | None
+    ) -> RunRecorder:
+        """A recorder saving to ``path`` (when given) and streaming to ``target``.
+
+        ``target``: None, ``spawn`` (start a viewer) or ``connect`` / ``connect=URL``.
+        """
+        stream = rr.RecordingStream(app_id, recording_id=recording_id)
+        blueprint = default_blueprint()
+        sinks = []
+        if path is not None:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            sinks.append(rr.FileSink(str(path)))
+        if target == "spawn":
+            stream.spawn(default_blueprint=blueprint)
+        elif target is not None and target.startswith("connect"):
+            url = target.partition("=")[2] or "rerun+http://127.0.0.1:9876/proxy"
+            sinks.append(rr.GrpcSink(url))
+        if sinks:
+            stream.set_sinks(*sinks, default_blueprint=blueprint)
+        return cls(stream)
+
+    def close(self) -> None:
+        self.rec.flush()
+        self.rec.disconnect()
+
+    def _time(self, **times: int) -> None:
+        self.rec.reset_time()
+        for timeline, value in times.items():
+            self.rec.set_time(timeline, sequence=value)
+
+    # --- static context -------------------------------------------------------------------
+    def log_run_card(self, markdown: str) -> None:
+        self.rec.log(
+            "run_card", rr.TextDocument(markdown, media_type=rr.MediaType.MARKDOWN), static=True
+        )
+
+    def log_domain(self, task: str, knobs: dict[str, Any], stats: dict[str, Any]) -> None:
+        values = {f"knob.{k}": str(v) for k, v in knobs.items()}
+        values.update({f"stat.{k}": float(v) for k, v in stats.items()})
+        self.rec.log(f"tasks/{task}", rr.AnyValues(**values), static=True)
+
+    # --- scene playback -------------------------------------------------------------------
+    def log_scene_truth(
+        self, task: str, index: int, positions: np.ndarray, ids: np.ndarray, obs_len: int
+    ) -> None:
+        """Ground truth of one scene: agents moving on ``frame``, history and future as lines.
+
+        positions: (agents, frames, 2).
+        """
+        base = f"tasks/{task}/scenes/{index}/truth"
+        frames = positions.shape[1]
+        labels = [str(i) for i in ids]
+        self.rec.send_columns(
+            f"{base}/agents",
+            indexes=[rr.TimeColumn("frame", sequence=np.arange(frames))],
+            columns=rr.Points2D.columns(
+                positions=positions.transpose(1, 0, 2).reshape(-1, 2),
+                labels=np.tile(labels, frames),
+            ).partition(np.full(frames, len(ids))),
+        )
+        self.rec.log(
+            f"{base}/history",
+            rr.LineStrips2D(_strips(positions[:, :obs_len]), colors=GREY),
+            static=True,
+        )
+        future = positions[:, obs_len - 1 :]
+        self.rec.log(f"{base}/future", rr.LineStrips2D(_strips(future), colors=GREEN), static=True)
+
+    def log_scene_predictions(
+        self,
+        task: str,
+        index: int,
+        method: str,
+        trained_through: int,
+        last_obs: np.ndarray,
+        pred: np.ndarray,
+        best: np.ndarray,
+        obs_len: int,
+    ) -> None:
+        """K predicted futures of one scene after training through task ``trained_through``.
+
+        pred: (K, agents, T, 2), drawn from the last observed position; best: (agents,) sample
+        index of the best of K (joint), drawn distinctly.
+        """
+        base = f"tasks/{task}/scenes/{index}/{method}"
+        self._time(task=trained_through, frame=obs_len - 1)
+        start = np.broadcast_to(last_obs[None, :, None], (*pred.shape[:2], 1, 2))
+        paths = np.concatenate([start, pred], axis=2)
+        self.rec.log(f"{base}/predictions", rr.LineStrips2D(_strips(paths), colors=(*RED, 90)))
+        chosen = paths[best, np.arange(paths.shape[1])]
+        self.rec.log(f"{base}/best", rr.LineStrips2D(_strips(chosen), colors=ORANGE, radii=0.03))
+
+    # --- rollouts -------------------------------------------------------------------------
+    def log_rollout_truth(self, task: str, positions: np.ndarray, ids: np.ndarray) -> None:
+        """A longer episode, frame by frame; positions (frames, agents, 2), NaN where absent."""
+        present = ~np.isnan(positions[..., 0])
+        counts = present.sum(1)
+        labels = np.broadcast_to(np.asarray(ids).astype(str), present.shape)[present]
+        self.rec.send_columns(
+            f"rollouts/{task}/truth/agents",
+            indexes=[rr.TimeColumn("frame", sequence=np.arange(len(positions)))],
+            columns=rr.Points2D.columns(positions=positions[present], labels=labels).partition(
+                counts
+            ),
+        )
+
+    def log_rollout_predictions(
+        self,
+        task: str,
+        method: str,
+        trained_through: int,
+        frames: np.ndarray,
+        last_obs: np.ndarray,
+        pred: np.ndarray,
+        window_agents: np.ndarray,
+    ) -> None:
+        """At each frame, K predictions from the 8 frames observed so far.
+
+        frames: (W,) the rollout frame of each window's last observation; pred: (K, A, T, 2)
+        for all windows' agents concatenated; window_agents: (W,) agents per window.
+        """
+        starts = np.broadcast_to(last_obs[None, :, None], (pred.shape[0], pred.shape[1], 1, 2))
+        paths = np.concatenate([starts, pred], axis=2).transpose(1, 0, 2, 3)  # (A, K, T+1, 2)
+        strips_per_window = window_agents * pred.shape[0]
+        self.rec.send_columns(
+            f"rollouts/{task}/{method}/predictions",
+            indexes=[
+                rr.TimeColumn("frame", sequence=frames),
+                rr.TimeColumn("task", sequence=np.full(len(frames), trained_through)),
+            ],
+            columns=rr.LineStrips2D.columns(strips=_strips(paths)).partition(strips_per_window),
+        )
+
+    # --- curves ---------------------------------------------------------------------------
+    def log_epoch(self, method: str, record: dict[str, Any]) -> None:
+        """Training losses and validation ADE of every seen task, on the global ``epoch``."""
+        self._time(epoch=record["global_epoch"], task=record["task"])
+        for key, value in record.items():
+            if key in ("task", "epoch", "global_epoch"):
+                continue
+            self.rec.log(f"curves/{method}/{key}", rr.Scalars(float(value)))
+
+    def log_matrix_row(
+        self, method: str, trained_through: int, tasks: list[str], row: dict[str, list[float]]
+    ) -> None:
+        """Error on every task after training through one task, on the ``task`` timeline."""
+        self._time(task=trained_through)
+        for j, name in enumerate(tasks):
+            for metric in ("ade", "fde", "ade_k1"):
+                self.rec.log(f"curves/{method}/matrix/{metric}/{name}", rr.Scalars(row[metric][j]))
+
+    def log_queue(
+        self, method: str, trained_through: int, means: np.ndarray, weights: np.ndarray
+    ) -> None:
+        """The prior queue after a task: its size, weights, and component means in 2-D (PCA)."""
+        self._time(task=trained_through)
+        self.rec.log(f"curves/{method}/queue_size", rr.Scalars(float(len(weights))))
+        centred = means - means.mean(0)
+        if len(means) > 1 and means.shape[1] > 2:
+            _, _, vt = np.linalg.svd(centred, full_matrices=False)
+            flat = centred @ vt[:2].T
+        else:
+            flat = centred[:, :2] if means.shape[1] >= 2 else np.pad(centred, ((0, 0), (0, 1)))
+        radii = 0.05 + 0.3 * np.sqrt(weights / weights.max())
+        self.rec.log(
+            f"queue/{method}/components",
+            rr.Points2D(flat, radii=radii, labels=[f"{w:.2f}" for w in weights]),
+        )
+        self.rec.log(f"queue/{method}/weights", rr.BarChart(weights))

@@ -1,0 +1,55 @@
+"""``python -m viz.serve FILE.rrd``: open a recording in Rerun's web viewer, on 127.0.0.1 only.
+
+Starts the ``rerun`` command of the installed rerun-sdk bound to the loopback address (never
+0.0.0.0), prints the address to open in a browser, and serves until interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+
+def command(path: Path, web_port: int, grpc_port: int) -> list[str]:
+    rerun = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
+    return [
+        rerun,
+        "--bind",
+        "127.0.0.1",
+        "--web-viewer",
+        "--web-viewer-port",
+        str(web_port),
+        "--port",
+        str(grpc_port),
+        str(path),
+    ]
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="viz.serve", description=__doc__.splitlines()[0])
+    p.add_argument("recording", type=Path)
+    p.add_argument("--web-port", type=int, default=9090)
+    p.add_argument("--grpc-port", type=int, default=9876)
+    args = p.parse_args(argv)
+    if not args.recording.is_file():
+        print(f"error: {args.recording}: no such recording", file=sys.stderr)
+        return 2
+    env = dict(os.environ)
+    env.setdefault(
+        "XDG_CONFIG_HOME", tempfile.mkdtemp(prefix="rerun-config-")
+    )  # no analytics file in ~
+    grpc = f"rerun%2Bhttp://127.0.0.1:{args.grpc_port}/proxy"
+    print(f"serving {args.recording} at http://127.0.0.1:{args.web_port}/?url={grpc}", flush=True)
+    try:
+        return subprocess.call(command(args.recording, args.web_port, args.grpc_port), env=env)
+    except KeyboardInterrupt:
+        return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
