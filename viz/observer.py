@@ -1,4 +1,4 @@
-"""A trainer observer that turns training events into recording calls (no logging in training code)."""
+"""A trainer observer turning training events into recording calls (none in training code)."""
 
 from __future__ import annotations
 
