@@ -10,6 +10,8 @@ import torch
 
 from c2inet.data import Windows
 
+MIN_SCALE = 0.05  # m per frame
+
 
 @dataclass
 class Batch:
@@ -30,6 +32,17 @@ class Batch:
     def obs_rel(self) -> torch.Tensor:
         """Observed displacements by backward differences; the first step is zero."""
         return torch.cat([torch.zeros_like(self.obs[:1]), self.obs[1:] - self.obs[:-1]])
+
+    @property
+    def scale(self) -> torch.Tensor:
+        """(N, 1) motion scale of each agent's scene: its mean observed step length, metres.
+
+        Observed frames only (no leak); floored at MIN_SCALE for scenes standing still.
+        """
+        step = self.obs_rel[1:].norm(dim=-1).mean(0)  # (N,)
+        sums = torch.zeros(self.num_scenes, dtype=step.dtype).index_add(0, self.scene_of, step)
+        counts = (self.scene_start[1:] - self.scene_start[:-1]).to(step.dtype)
+        return (sums / counts).clamp_min(MIN_SCALE)[self.scene_of, None]
 
     @property
     def fut_rel(self) -> torch.Tensor:

@@ -2,8 +2,9 @@
 
 The plain predictor draws that latent from N(0, I) (the baselines); :class:`C2INetModel` infers a
 trajectory latent Z and a confounder C with Gaussian heads and scores C against the prior queue.
-Inputs are observed displacements divided by a fixed ``scale`` (metres per frame of the first
-task), so pedestrians and vehicles alike reach the network at unit size.
+Displacements are divided by each scene's own motion scale (``Batch.scale``, from observed frames
+only) and predictions multiplied back, so pedestrians and vehicles alike reach the network at
+unit size, in one curriculum too.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ class ModelConfig:
     latent_dim: int = 16  # noise size of the baselines; C2INet uses z_dim + c_dim
     z_dim: int = 8
     c_dim: int = 8
-    likelihood_std: float = 0.1  # std of the Gaussian likelihood, in units of ``scale``
+    likelihood_std: float = 0.1  # std of the Gaussian likelihood, in units of the scene scale
     beta_c: float = 1.0
     beta_z: float = 1.0
     n_mc: int = 10  # Monte Carlo samples of C for the KL to the mixture
@@ -36,15 +37,14 @@ class ModelConfig:
 class Predictor(nn.Module):
     """A backbone predicting future displacements from a latent drawn from N(0, I)."""
 
-    def __init__(self, config: ModelConfig, scale: float, latent_dim: int | None = None):
+    def __init__(self, config: ModelConfig, latent_dim: int | None = None):
         super().__init__()
         self.config = config
         self.latent_dim = latent_dim or config.latent_dim
         self.backbone = BACKBONES[config.backbone](self.latent_dim)
-        self.register_buffer("scale", torch.tensor(float(scale)))
 
     def context(self, batch: Batch) -> torch.Tensor:
-        return self.backbone.encode(batch.obs_rel / self.scale, batch)
+        return self.backbone.encode(batch.obs_rel / batch.scale, batch)
 
     def latents(self, context: torch.Tensor, samples: int) -> torch.Tensor:
         return torch.randn(samples, context.shape[0], self.latent_dim)
@@ -52,11 +52,11 @@ class Predictor(nn.Module):
     def decode(self, batch: Batch, context: torch.Tensor, latent: torch.Tensor) -> torch.Tensor:
         """Normalised future displacements (12, S, N, 2)."""
         ctx = context.expand(latent.shape[0], *context.shape)
-        return self.backbone.decode(ctx, latent, batch.obs_rel[-1] / self.scale)
+        return self.backbone.decode(ctx, latent, batch.obs_rel[-1] / batch.scale)
 
     def nll(self, batch: Batch, pred_rel: torch.Tensor) -> torch.Tensor:
         """Gaussian negative log-likelihood of the future displacements per agent (S, N)."""
-        error = pred_rel - (batch.fut_rel / self.scale)[:, None]
+        error = pred_rel - (batch.fut_rel / batch.scale)[:, None]
         return (error**2).sum(dim=(0, 3)) / (2 * self.config.likelihood_std**2)
 
     def loss(self, batch: Batch) -> tuple[torch.Tensor, dict[str, float]]:
@@ -69,7 +69,7 @@ class Predictor(nn.Module):
     def predict(self, batch: Batch, samples: int) -> torch.Tensor:
         """K sampled futures as absolute positions in metres, (K, 12, N, 2)."""
         context = self.context(batch)
-        rel = self.decode(batch, context, self.latents(context, samples)) * self.scale
+        rel = self.decode(batch, context, self.latents(context, samples)) * batch.scale
         return (batch.obs[-1] + rel.cumsum(0)).transpose(0, 1)
 
 
@@ -92,8 +92,8 @@ class GaussianHead(nn.Module):
 class C2INetModel(Predictor):
     """C2INet: posteriors Q(Z|X) and Q(C|X) on the backbone, C scored against the prior queue."""
 
-    def __init__(self, config: ModelConfig, scale: float, queue: QueueConfig | None = None):
-        super().__init__(config, scale, latent_dim=config.z_dim + config.c_dim)
+    def __init__(self, config: ModelConfig, queue: QueueConfig | None = None):
+        super().__init__(config, latent_dim=config.z_dim + config.c_dim)
         self.to_z = GaussianHead(self.backbone.out_dim, config.z_dim)
         self.to_c = GaussianHead(self.backbone.out_dim, config.c_dim)
         self.queue = PriorQueue(config.c_dim, queue)

@@ -86,12 +86,6 @@ def evaluate(
     )
 
 
-def motion_scale(windows: Windows) -> float:
-    """Mean observed displacement per frame, metres: the unit the networks see."""
-    steps = np.linalg.norm(np.diff(windows.positions[:, : windows.obs_len], axis=1), axis=-1)
-    return float(max(steps.mean(), 1e-3))
-
-
 class ContinualTrainer:
     """Runs one method through a curriculum and fills the task-by-task error matrices."""
 
@@ -118,7 +112,7 @@ class ContinualTrainer:
         cfg, method = self.config, self.method
         torch.manual_seed(cfg.seed)
         rng = _generator(cfg.seed, method.name)
-        model = method.build_model(motion_scale(self.tasks[0].train))
+        model = method.build_model()
         optimiser = torch.optim.Adam(model.parameters(), lr=cfg.lr) if method.trains else None
         n = len(self.tasks)
         result = Result([t.name for t in self.tasks], {m: np.full((n, n), np.nan) for m in METRICS})

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -28,6 +29,21 @@ def parser(prog: str, description: str) -> argparse.ArgumentParser:
         help="extra folder of family TOML files (repeatable)",
     )
     return p
+
+
+def add_workers(p: argparse.ArgumentParser) -> None:
+    """``--workers``: processes that generate episodes in parallel (same result for any count)."""
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=os.cpu_count() or 1,
+        help="worker processes for episode generation (default: the number of cores)",
+    )
+
+
+def check_workers(workers: int) -> None:
+    if not 1 <= workers <= 256:
+        raise InputError(f"--workers {workers}: must be between 1 and 256")
 
 
 def guarded(main: Callable[[list[str] | None], int]) -> Callable[[list[str] | None], int]:

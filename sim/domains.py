@@ -45,7 +45,11 @@ def domain_hash(spec: DomainSpec, root_seed: int, splits: Splits | None = None) 
 
 
 def build_domain(
-    spec: DomainSpec, root_seed: int, cache_dir: Path | None = None, splits: Splits | None = None
+    spec: DomainSpec,
+    root_seed: int,
+    cache_dir: Path | None = None,
+    splits: Splits | None = None,
+    workers: int = 1,
 ) -> Domain:
     """Generate the domain of ``spec``, or read it from ``cache_dir`` when already made.
 
@@ -58,7 +62,7 @@ def build_domain(
         return read_parquet(cached)
     generator = get_generator(spec.family.generator)()
     domain = generator.generate(
-        spec.name, spec.family.name, spec.knobs(), splits, domain_seed(root_seed, spec)
+        spec.name, spec.family.name, spec.knobs(), splits, domain_seed(root_seed, spec), workers
     )
     domain.hash = digest
     if cached:

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from sim.cli import guarded, parser
+from sim.cli import add_workers, check_workers, guarded, parser
 from sim.data import SPLITS, Domain
 from sim.domains import build_domain
 from sim.io import write_ethucy, write_npz, write_parquet, write_text_atomic
@@ -64,11 +64,13 @@ def main(argv: list[str] | None = None) -> int:
     p = parser("sim.generate", __doc__.splitlines()[0])
     p.add_argument("--out", type=Path, required=True, help="output folder")
     p.add_argument("--format", choices=sorted(WRITERS), default="parquet")
+    add_workers(p)
     args = p.parse_args(argv)
+    check_workers(args.workers)
     curriculum = parse_scenario(args.scenario, args.scenarios_dir)
     domains = []
     for spec in tqdm(curriculum, desc="domains", unit="domain", file=sys.stderr):
-        domain = build_domain(spec, args.seed)
+        domain = build_domain(spec, args.seed, workers=args.workers)
         WRITERS[args.format](domain, args.out)
         domains.append(domain)
     summary = {

@@ -25,12 +25,13 @@ from c2inet.methods.base import get_method
 from c2inet.model import ModelConfig
 from c2inet.report import markdown_report, matrix_csv, summarise, text_table
 from c2inet.trainer import ContinualTrainer, Task, TrainConfig
-from sim.cli import guarded, parser
+from sim.cli import add_workers, check_workers, guarded, parser
 from sim.data import cut_windows
 from sim.domains import build_domain, rollout_scene
 from sim.errors import InputError
 from sim.families import Splits
 from sim.generate import domain_summary
+from sim.generators import get_generator
 from sim.io import write_text_atomic
 from sim.scenario import DomainSpec, parse_scenario
 from viz import figures
@@ -38,7 +39,6 @@ from viz.observer import RecordingObserver, Showcase, log_truth
 from viz.recording import RunRecorder
 
 DEFAULT_METHODS = "c2inet-online,finetune,cv"
-QUICK_SPLITS = Splits(train=12, val=4, test=6)
 QUICK_WINDOWS = 24  # at most this many windows per split in --quick runs (real data)
 SAMPLE_SCENES = 4  # test scenes per task drawn in the recording
 ROLLOUT_FRAMES = 50  # frames of the longer episode played per domain (20 s at 0.4 s)
@@ -51,12 +51,13 @@ def run_folder(scenario: str) -> Path:
 
 
 def make_tasks(
-    curriculum: list[DomainSpec], seed: int, quick: bool, cache: Path
+    curriculum: list[DomainSpec], seed: int, quick: bool, cache: Path, workers: int
 ) -> tuple[list[Task], list]:
     """Domains of the curriculum as learner tasks (windows per split)."""
     tasks, domains = [], []
     for spec in tqdm(curriculum, desc="domains", unit="domain", file=sys.stderr, leave=False):
-        domain = build_domain(spec, seed, cache, QUICK_SPLITS if quick else None)
+        quick_splits = Splits(*get_generator(spec.family.generator).quick_splits) if quick else None
+        domain = build_domain(spec, seed, cache, quick_splits, workers)
         splits = {}
         for split in ("train", "val", "test"):
             windows = domain.windows(split)
@@ -133,6 +134,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, default=None, help="output folder (default runs/<scenario>)")
     p.add_argument("--cache", type=Path, default=Path(".cache/domains"), help="domain cache folder")
     p.add_argument("--quick", action="store_true", help="tiny sizes, for smoke tests")
+    add_workers(p)
     p.add_argument("--no-record", action="store_true", help="do not write recording.rrd")
     p.add_argument(
         "--rerun",
@@ -154,11 +156,12 @@ def main(argv: list[str] | None = None) -> int:
     k = args.k if args.k is not None else (5 if args.quick else 20)
     if not 0 <= epochs <= 10_000 or not 1 <= k <= 1000:
         raise InputError("--epochs must be in [0, 10000] and --k in [1, 1000]")
+    check_workers(args.workers)
     methods = parse_methods(args.methods)
     curriculum = parse_scenario(args.scenario, args.scenarios_dir)
     out = args.out or run_folder(args.scenario)
     started = time.perf_counter()
-    tasks, domains = make_tasks(curriculum, args.seed, args.quick, args.cache)
+    tasks, domains = make_tasks(curriculum, args.seed, args.quick, args.cache, args.workers)
     one_family = len({s.family.name for s in curriculum}) == 1
     labels = [s.label if one_family else s.name for s in curriculum]
     model_config = ModelConfig(backbone=args.backbone)

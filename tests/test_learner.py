@@ -30,7 +30,7 @@ def test_changing_future_frames_never_changes_model_inputs():
     a, b = make_batch(windows), make_batch(altered)
     torch.testing.assert_close(a.obs_rel, b.obs_rel)
     assert not torch.equal(a.fut_rel, b.fut_rel)
-    for model in (Predictor(ModelConfig(), 0.4), C2INetModel(ModelConfig(), 0.4)):
+    for model in (Predictor(ModelConfig()), C2INetModel(ModelConfig())):
         torch.testing.assert_close(model.context(a), model.context(b))
 
 
@@ -44,7 +44,7 @@ def test_padding_round_trips_agents_to_scene_slots():
 
 def test_graph_attention_stays_inside_each_scene():
     windows = toy_windows(4)
-    model = Predictor(ModelConfig(), 0.4)
+    model = Predictor(ModelConfig())
     base = model.context(make_batch(windows))
     moved = Windows(windows.positions.copy(), windows.scene_start)
     last = slice(windows.scene_start[-2], windows.scene_start[-1])
@@ -58,7 +58,7 @@ def test_graph_attention_stays_inside_each_scene():
 
 def test_ewc_penalty_is_zero_at_the_anchor_and_positive_away():
     ewc = get_method("ewc")(ModelConfig())
-    model = ewc.build_model(0.4)
+    model = ewc.build_model()
     ctx = TaskContext(0, "t", toy_windows(), model, None, np.random.default_rng(0))
     ewc.after_task(ctx)
     assert ewc.penalty(model).item() == 0.0

@@ -47,8 +47,8 @@ class Method:
         self.model_config = model_config
         self.options = options or {}
 
-    def build_model(self, scale: float) -> torch.nn.Module:
-        return Predictor(self.model_config, scale)
+    def build_model(self) -> torch.nn.Module:
+        return Predictor(self.model_config)
 
     def before_task(self, ctx: TaskContext) -> None:
         pass

@@ -35,8 +35,8 @@ class C2INetOnline(Method):
         self.sample_scenes = None
         self.queue_sizes: list[int] = []
 
-    def build_model(self, scale: float) -> torch.nn.Module:
-        return C2INetModel(self.model_config, scale, self.queue_config)
+    def build_model(self) -> torch.nn.Module:
+        return C2INetModel(self.model_config, self.queue_config)
 
     def _current_posterior(self, ctx: TaskContext, limit: int | None = None) -> GaussianMixture:
         """Q_cur: the aggregated posterior of the S samples under the current encoder.

@@ -13,5 +13,5 @@ class ConstantVelocityMethod(Method):
     name = "cv"
     trains = False
 
-    def build_model(self, scale: float) -> torch.nn.Module:
+    def build_model(self) -> torch.nn.Module:
         return ConstantVelocity()

@@ -24,6 +24,7 @@ class Generator:
     name: ClassVar[str]
     version: ClassVar[int] = 1  # bump when output for the same knobs changes (cache key)
     Knobs: ClassVar[type]
+    quick_splits: ClassVar[tuple[int, int, int]] = (12, 4, 6)  # train/val/test for smoke runs
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
@@ -67,4 +68,4 @@ def get_generator(name: str, where: str = "generator") -> type[Generator]:
 
 
 def _import_builtin() -> None:
-    from sim.generators import crowd, files  # noqa: F401  (registers them)
+    from sim.generators import crowd, files, traffic  # noqa: F401  (registers them)

@@ -307,7 +307,7 @@ class CrowdGenerator(Generator):
         (positions,) = simulate(options, [seed])
         return Scene(positions, np.arange(options.num_agents, dtype=np.int64))
 
-    def generate(self, name, family, knobs: dict[str, Any], splits, seed) -> Domain:
+    def generate(self, name, family, knobs: dict[str, Any], splits, seed, workers=1) -> Domain:
         options = CrowdKnobs(**knobs)
         scenes: dict[str, list[Scene]] = {}
         for split_id, split in enumerate(SPLITS):

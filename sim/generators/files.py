@@ -119,7 +119,7 @@ class FilesGenerator(Generator):
         scene = read_trajectory_file(Path(knobs["test"][0]))
         return Scene(scene.positions[:frames], scene.agent_ids)
 
-    def generate(self, name, family, knobs: dict[str, Any], splits, seed) -> Domain:
+    def generate(self, name, family, knobs: dict[str, Any], splits, seed, workers=1) -> Domain:
         scenes = {split: [read_trajectory_file(Path(p)) for p in knobs[split]] for split in SPLITS}
         everything = [s for split in SPLITS for s in scenes[split]]
         stats = motion_stats(everything, knobs["dt"])
