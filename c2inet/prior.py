@@ -85,7 +85,7 @@ def moment_match(means: torch.Tensor, logvars: torch.Tensor) -> tuple[torch.Tens
     return m, var.clamp_min(1e-6).log()
 
 
-@dataclass
+@dataclass(frozen=True)
 class QueueConfig:
     """Switches and sizes of the prior queue (defaults from the method notes, section 5)."""
 

@@ -16,12 +16,13 @@ import time
 from dataclasses import asdict
 from importlib import metadata
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from tqdm import tqdm
 
 from c2inet.backbones import BACKBONES
-from c2inet.methods.base import get_method
+from c2inet.methods.base import build_options, get_method
 from c2inet.model import ModelConfig
 from c2inet.report import markdown_report, matrix_csv, summarise, text_table
 from c2inet.trainer import ContinualTrainer, Task, TrainConfig
@@ -93,6 +94,33 @@ def make_showcases(curriculum: list[DomainSpec], tasks: list[Task], seed: int) -
     return showcases, rollouts
 
 
+def parse_settings(items: list[str], methods: list[str]) -> dict[str, dict[str, Any]]:
+    """``--set SCOPE.KEY=VALUE`` -> {scope: {key: value}}; scope: model, train or a method."""
+    settings: dict[str, dict[str, Any]] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        scope, dot, name = key.partition(".")
+        if not sep or not dot or not name:
+            raise InputError(
+                f"--set {item!r}: expected SCOPE.KEY=VALUE, e.g. c2inet-online.pruning=false"
+            )
+        if scope not in ("model", "train", *methods):
+            raise InputError(
+                f"--set {item!r}: scope {scope!r} is not model, train or a chosen method"
+            )
+        lowered = text.strip().lower()
+        value: Any = {"true": True, "false": False}.get(lowered, text)
+        if isinstance(value, str):
+            for kind in (int, float):
+                try:
+                    value = kind(text)
+                    break
+                except ValueError:
+                    pass
+        settings.setdefault(scope, {})[name] = value
+    return settings
+
+
 def versions() -> dict[str, str]:
     out = {"python": platform.python_version()}
     for package in ("torch", "numpy", "pymunk", "rerun-sdk", "highway-env", "c2i-testbed"):
@@ -134,6 +162,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, default=None, help="output folder (default runs/<scenario>)")
     p.add_argument("--cache", type=Path, default=Path(".cache/domains"), help="domain cache folder")
     p.add_argument("--quick", action="store_true", help="tiny sizes, for smoke tests")
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="SCOPE.KEY=VALUE",
+        help="override an option: model.beta_c=0, train.lr=0.001, c2inet-online.pruning=false",
+    )
     add_workers(p)
     p.add_argument("--no-record", action="store_true", help="do not write recording.rrd")
     p.add_argument(
@@ -159,12 +194,26 @@ def main(argv: list[str] | None = None) -> int:
     check_workers(args.workers)
     methods = parse_methods(args.methods)
     curriculum = parse_scenario(args.scenario, args.scenarios_dir)
+    settings = parse_settings(args.set, methods)
+    try:
+        model_config = build_options(
+            ModelConfig, {"backbone": args.backbone, **settings.get("model", {})}
+        )
+        train_settings = settings.get("train", {})
+        build_options(TrainConfig, train_settings)
+        for name in methods:
+            get_method(name)(model_config, settings.get(name))
+    except ValueError as error:
+        raise InputError(f"--set: {error}") from None
+    if model_config.c_source not in ("posterior", "prior"):
+        raise InputError(
+            f"--set model.c_source={model_config.c_source!r}: expected posterior or prior"
+        )
     out = args.out or run_folder(args.scenario)
     started = time.perf_counter()
     tasks, domains = make_tasks(curriculum, args.seed, args.quick, args.cache, args.workers)
     one_family = len({s.family.name for s in curriculum}) == 1
     labels = [s.label if one_family else s.name for s in curriculum]
-    model_config = ModelConfig(backbone=args.backbone)
 
     recorder = None
     if not args.no_record or args.rerun:
@@ -185,14 +234,16 @@ def main(argv: list[str] | None = None) -> int:
     drawn: dict[str, dict] = {}
     with tqdm(total=len(jobs) * len(tasks), desc="tasks", unit="task", file=sys.stderr) as bar:
         for name, seed_index in jobs:
-            config = TrainConfig(epochs=epochs, k=k, seed=args.seed + seed_index)
+            config = TrainConfig(
+                **{**train_settings, "epochs": epochs, "k": k, "seed": args.seed + seed_index}
+            )
             observers = [lambda event, _data: bar.update(1) if event == "task_end" else None]
             if recorder is not None and seed_index == 0:  # the first seed is drawn
                 observer = RecordingObserver(recorder, name, showcases, k, seed=args.seed)
                 observers.append(observer)
                 drawn[name] = observer.final_predictions
             trainer = ContinualTrainer(
-                get_method(name)(model_config),
+                get_method(name)(model_config, settings.get(name)),
                 tasks,
                 config,
                 checkpoint_dir=out / "checkpoints" / name / f"seed_{seed_index}",
@@ -231,7 +282,10 @@ def main(argv: list[str] | None = None) -> int:
         "methods": methods,
         "quick": args.quick,
         "model": asdict(model_config),
-        "train": asdict(TrainConfig(epochs=epochs, k=k, seed=args.seed)),
+        "train": asdict(
+            TrainConfig(**{**train_settings, "epochs": epochs, "k": k, "seed": args.seed})
+        ),
+        "settings": settings,
         "versions": versions(),
         "domains": [domain_summary(d) for d in domains],
         "windows": {

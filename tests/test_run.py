@@ -57,6 +57,30 @@ def test_quick_run_writes_every_output(tmp_path):
     ]
 
 
+def test_settings_reach_the_method_and_the_run_card(tmp_path):
+    result = run(
+        "--scenario",
+        "crowd_noise_0.1,0.2",
+        "--quick",
+        "--no-record",
+        "--methods",
+        "c2inet-online",
+        "--set",
+        "c2inet-online.capacity=1",
+        "--set",
+        "model.beta_z=0",
+        "--out",
+        str(tmp_path),
+        "--cache",
+        str(tmp_path / "cache"),
+    )
+    assert result.returncode == 0, result.stderr
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert metrics["methods"]["c2inet-online"]["queue_size"] == [1, 1]  # pruned to capacity
+    card = json.loads((tmp_path / "run_card.json").read_text())
+    assert card["model"]["beta_z"] == 0 and card["settings"]["c2inet-online"] == {"capacity": 1}
+
+
 def test_seeds_give_mean_and_std(tmp_path):
     result = run(
         "--scenario",
@@ -84,6 +108,17 @@ def test_seeds_give_mean_and_std(tmp_path):
         (["--scenario", "crowd_noise_0.1", "--seeds", "0"], "--seeds"),
         (["--scenario", "crowd_noise_0.1", "--k", "0"], "--k"),
         (["--scenario", "crowd_noise_1..0"], "reversed"),
+        (
+            ["--scenario", "crowd_noise_0.1", "--set", "c2inet-online.prunning=false"],
+            "unknown option",
+        ),
+        (
+            ["--scenario", "crowd_noise_0.1", "--set", "c2inet-online.pruning=maybe"],
+            "true or false",
+        ),
+        (["--scenario", "crowd_noise_0.1", "--set", "pruning"], "SCOPE.KEY=VALUE"),
+        (["--scenario", "crowd_noise_0.1", "--set", "ewc.strength=1"], "not model, train"),
+        (["--scenario", "crowd_noise_0.1", "--workers", "0"], "--workers"),
     ],
 )
 def test_bad_options_give_one_error_line(args, message):

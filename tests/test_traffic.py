@@ -5,9 +5,8 @@ import pytest
 
 from sim.domains import build_domain
 from sim.errors import InputError
-from sim.families import Splits
+from sim.families import SCENARIOS_DIR, Splits
 from sim.generators.traffic import TrafficKnobs, local_scenes, simulate_episode
-from sim.families import SCENARIOS_DIR
 from sim.scenario import parse_scenario
 
 

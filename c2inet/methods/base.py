@@ -7,6 +7,7 @@ says in its docstring which hooks it uses. Methods register by ``name``.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -32,12 +33,36 @@ class TaskContext:
     seen_train: list[Windows] = field(default_factory=list)  # earlier tasks (joint only)
 
 
+@dataclass(frozen=True)
+class NoOptions:
+    """Methods without options."""
+
+
+def build_options(cls: type, values: dict[str, Any]):
+    """``cls(**values)`` with every key checked and values converted to the field's type."""
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    out = {}
+    for key, value in values.items():
+        if key not in fields:
+            known = ", ".join(fields) or "none"
+            raise ValueError(f"unknown option {key!r} (options: {known})")
+        kind = type(getattr(cls(), key))
+        if kind is bool and not isinstance(value, bool):
+            raise ValueError(f"option {key!r} must be true or false, got {value!r}")
+        try:
+            out[key] = kind(value)
+        except (TypeError, ValueError):
+            raise ValueError(f"option {key!r} must be {kind.__name__}, got {value!r}") from None
+    return cls(**out)
+
+
 class Method:
     """Plain sequential training; subclasses override the hooks they need."""
 
     name: ClassVar[str]
     trains: ClassVar[bool] = True
     sees_old_tasks: ClassVar[bool] = False  # True only for the joint upper reference
+    Options: ClassVar[type] = NoOptions  # a frozen dataclass of the method's options
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
@@ -45,7 +70,7 @@ class Method:
 
     def __init__(self, model_config: ModelConfig, options: dict[str, Any] | None = None):
         self.model_config = model_config
-        self.options = options or {}
+        self.options = build_options(self.Options, options or {})
 
     def build_model(self) -> torch.nn.Module:
         return Predictor(self.model_config)

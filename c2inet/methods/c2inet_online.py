@@ -10,6 +10,7 @@ Hooks: ``before_task``, ``after_epoch``, ``after_task``. Example: ``--methods c2
 
 from __future__ import annotations
 
+from dataclasses import asdict, dataclass
 from typing import Any
 
 import torch
@@ -22,15 +23,25 @@ from c2inet.prior import GaussianMixture, QueueConfig, mix, moment_match
 TARGET_COMPONENTS = 256
 
 
+@dataclass(frozen=True)
+class C2INetOptions(QueueConfig):
+    """The queue's switches and sizes, plus the schedule of Algorithm 1."""
+
+    interval: int = 5  # |E|: epochs between new components
+    samples: int = 1000  # S: agents sampled for the initial prior and the targets
+
+
 class C2INetOnline(Method):
     name = "c2inet-online"
+    Options = C2INetOptions
 
     def __init__(self, model_config, options: dict[str, Any] | None = None):
         super().__init__(model_config, options)
-        opts = dict(self.options)
-        self.interval = int(opts.pop("interval", 5))  # |E|
-        self.samples = int(opts.pop("samples", 1000))  # S, in agents
-        self.queue_config = QueueConfig(**opts)
+        self.interval, self.samples = self.options.interval, self.options.samples
+        fields = QueueConfig.__dataclass_fields__
+        self.queue_config = QueueConfig(
+            **{k: v for k, v in asdict(self.options).items() if k in fields}
+        )
         self.old: GaussianMixture | None = None
         self.sample_scenes = None
         self.queue_sizes: list[int] = []

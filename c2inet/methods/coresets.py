@@ -5,18 +5,25 @@ buffer; later tasks train on their own scenes plus the buffer (BooVAE's ``add_co
 Hooks: ``training_windows``, ``after_task``. Example: ``--methods coresets``
 """
 
+from dataclasses import dataclass
 from typing import Any
 
 from c2inet.data import Windows
 from c2inet.methods.base import Method, TaskContext
 
 
+@dataclass(frozen=True)
+class CoresetOptions:
+    per_task: int = 30  # scenes kept from every finished task
+
+
 class Coresets(Method):
     name = "coresets"
+    Options = CoresetOptions
 
     def __init__(self, model_config, options: dict[str, Any] | None = None):
         super().__init__(model_config, options)
-        self.per_task = int(self.options.get("per_task", 30))
+        self.per_task = self.options.per_task
         self.buffer: list[Windows] = []
 
     def training_windows(self, ctx: TaskContext) -> Windows:

@@ -6,6 +6,7 @@ task's batches and folded into a running Fisher (``gamma`` decays the old one); 
 Hooks: ``extra_loss``, ``after_task``. Example: ``--methods ewc``
 """
 
+from dataclasses import dataclass
 from typing import Any
 
 import torch
@@ -14,13 +15,19 @@ from c2inet.batch import batches
 from c2inet.methods.base import Method, TaskContext
 
 
+@dataclass(frozen=True)
+class EWCOptions:
+    strength: float = 100.0  # lambda
+    gamma: float = 1.0  # decay of the running Fisher (1: plain sum over tasks)
+
+
 class EWC(Method):
     name = "ewc"
+    Options = EWCOptions
 
     def __init__(self, model_config, options: dict[str, Any] | None = None):
         super().__init__(model_config, options)
-        self.strength = float(self.options.get("lambda", 100.0))
-        self.gamma = float(self.options.get("gamma", 1.0))
+        self.strength, self.gamma = self.options.strength, self.options.gamma
         self.fisher: dict[str, torch.Tensor] = {}
         self.anchor: dict[str, torch.Tensor] = {}
 
