@@ -37,7 +37,7 @@ from sim.io import write_text_atomic
 from sim.scenario import DomainSpec, parse_scenario
 from viz import figures
 from viz.observer import RecordingObserver, Showcase, log_truth
-from viz.recording import RunRecorder
+from viz.recording import RunRecorder, default_blueprint
 
 DEFAULT_METHODS = "c2inet-online,finetune,cv"
 QUICK_WINDOWS = 24  # at most this many windows per split in --quick runs (real data)
@@ -222,6 +222,7 @@ def main(argv: list[str] | None = None) -> int:
             f"{args.scenario}-seed{args.seed}",
             None if args.no_record else out / "recording.rrd",
             args.rerun,
+            default_blueprint([t.name for t in tasks], SAMPLE_SCENES),
         )
         showcases, rollouts = make_showcases(curriculum, tasks, args.seed)
         for domain in domains:

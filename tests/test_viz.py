@@ -1,6 +1,7 @@
 """The Rerun recording and figures of a --quick run, live streaming, and the web viewer server."""
 
 import os
+import shutil
 import socket
 import subprocess
 import sys
@@ -9,6 +10,7 @@ import urllib.request
 from collections import Counter
 from pathlib import Path
 
+import numpy as np
 import pytest
 from rerun.chunk import RrdReader
 
@@ -190,3 +192,15 @@ def test_web_viewer_serves_on_loopback_only(recorded, env):
 def test_bad_rerun_option_is_rejected(env, tmp_path):
     result = quick_run(tmp_path, env, "--rerun", "broadcast")
     assert result.returncode == 2 and "--rerun" in result.stderr
+
+
+@pytest.mark.skipif(shutil.which("chromium") is None, reason="Debian chromium not installed")
+def test_headless_chromium_renders_the_web_viewer(recorded, tmp_path):
+    from matplotlib.image import imread
+
+    from viz.screenshot import screenshot
+
+    image = imread(screenshot(recorded / "recording.rrd", tmp_path / "viewer.png", budget_ms=30000))
+    assert image.shape[:2] == (900, 1600)
+    # a rendered viewer has panels, text and trajectories, not one background colour
+    assert len(np.unique(image.reshape(-1, image.shape[-1]), axis=0)) > 500  # a blank page has < 10

@@ -25,13 +25,35 @@ import rerun.blueprint as rrb
 GREY, GREEN, RED, ORANGE = (150, 150, 150), (40, 170, 60), (220, 60, 50), (255, 150, 0)
 
 
-def default_blueprint() -> rrb.Blueprint:
-    """The 2-D scene view beside the time series and the run card."""
+def default_blueprint(tasks: list[str], scenes: int) -> rrb.Blueprint:
+    """Per task a tab of 2-D views (its sample scenes and its rollout), beside the curves and
+    the run card."""
+    tabs = [
+        rrb.Grid(
+            *(
+                rrb.Spatial2DView(origin=f"/tasks/{task}/scenes/{k}", name=f"scene {k}")
+                for k in range(scenes)
+            ),
+            rrb.Spatial2DView(origin=f"/rollouts/{task}", name="rollout"),
+            name=task,
+        )
+        for task in tasks
+    ]
+    curves = [
+        ("validation ADE", "/curves/*/val_ade/**"),
+        ("error matrix rows (ADE)", "/curves/*/matrix/ade/**"),
+        (
+            "training losses",
+            ["/curves/*/nll", "/curves/*/kl_c", "/curves/*/kl_z", "/curves/*/penalty"],
+        ),
+    ]
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial2DView(origin="/", contents=["/tasks/**", "/rollouts/**"], name="scenes"),
+            rrb.Tabs(*tabs),
             rrb.Vertical(
-                rrb.TimeSeriesView(origin="/curves", name="curves"),
+                rrb.Tabs(
+                    *(rrb.TimeSeriesView(origin="/curves", contents=c, name=n) for n, c in curves)
+                ),
                 rrb.TextDocumentView(origin="/run_card", name="run card"),
             ),
             column_shares=[3, 2],
@@ -54,14 +76,18 @@ class RunRecorder:
 
     @classmethod
     def create(
-        cls, app_id: str, recording_id: str, path: Path | None, target: str | None
+        cls,
+        app_id: str,
+        recording_id: str,
+        path: Path | None,
+        target: str | None,
+        blueprint: rrb.Blueprint,
     ) -> RunRecorder:
         """A recorder saving to ``path`` (when given) and streaming to ``target``.
 
         ``target``: None, ``spawn`` (start a viewer) or ``connect`` / ``connect=URL``.
         """
         stream = rr.RecordingStream(app_id, recording_id=recording_id)
-        blueprint = default_blueprint()
         sinks = []
         if path is not None:
             path.parent.mkdir(parents=True, exist_ok=True)

@@ -32,6 +32,8 @@ class C2INetOptions(QueueConfig):
 
 
 class C2INetOnline(Method):
+    """C2INet with the online prior queue (Algorithm 1)."""
+
     name = "c2inet-online"
     Options = C2INetOptions
 

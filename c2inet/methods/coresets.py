@@ -18,6 +18,8 @@ class CoresetOptions:
 
 
 class Coresets(Method):
+    """Replay of a random buffer of scenes from every finished task."""
+
     name = "coresets"
     Options = CoresetOptions
 

@@ -10,6 +10,8 @@ from c2inet.model import ConstantVelocity
 
 
 class ConstantVelocityMethod(Method):
+    """The last observed displacement, repeated: the floor."""
+
     name = "cv"
     trains = False
 

@@ -22,6 +22,8 @@ class EWCOptions:
 
 
 class EWC(Method):
+    """Online elastic weight consolidation."""
+
     name = "ewc"
     Options = EWCOptions
 

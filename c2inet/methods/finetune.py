@@ -7,4 +7,6 @@ from c2inet.methods.base import Method
 
 
 class Finetune(Method):
+    """Sequential training with no protection against forgetting."""
+
     name = "finetune"

@@ -9,6 +9,8 @@ from c2inet.methods.base import Method, TaskContext
 
 
 class Joint(Method):
+    """Training on the union of all tasks seen so far: the upper reference."""
+
     name = "joint"
     sees_old_tasks = True
 

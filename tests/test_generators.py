@@ -1,0 +1,71 @@
+"""Every registered generator and method against the same contract (as Gymnasium's env checker)."""
+
+import dataclasses
+import sys
+
+import numpy as np
+import pytest
+
+from c2inet.methods.base import METHODS, Method, get_method
+from c2inet.model import ModelConfig
+from sim.data import SPLITS, Domain
+from sim.families import SCENARIOS_DIR, Splits, available_families, load_family
+from sim.generators import GENERATORS, Generator, get_generator
+
+get_generator("crowd")  # imports the built-in generators
+get_method("cv")  # and the built-in methods
+
+
+@pytest.mark.parametrize("name", sorted(GENERATORS))
+def test_generator_contract(name):
+    cls = GENERATORS[name]
+    assert issubclass(cls, Generator) and cls.name == name and cls.version >= 1
+    assert dataclasses.is_dataclass(cls.Knobs) and cls.Knobs.__dataclass_params__.frozen
+    assert cls.__doc__ and len(cls.quick_splits) == 3
+
+
+@pytest.mark.parametrize("path", sorted(available_families([]).values()), ids=lambda p: p.stem)
+def test_every_shipped_family_loads_and_generates_a_valid_domain(path):
+    family = load_family(path)
+    assert family.description, f"{path.name} needs a description"
+    if family.values:
+        value = family.value_names[0]
+    else:
+        value = 1.0 if family.knob == "vehicles_density" else 0.3
+    knobs = family.knobs_for(value)
+    generator = get_generator(family.generator)()
+    if family.generator == "traffic":
+        knobs = {**knobs, "seconds": 9.0, "vehicles": 5}
+    splits = Splits(*generator.quick_splits) if family.generator != "crowd" else Splits(2, 1, 1)
+    domain = generator.generate("d", family.name, knobs, splits, np.random.SeedSequence(0))
+    assert isinstance(domain, Domain) and set(domain.scenes) == set(SPLITS)
+    assert {"mean_speed", "min_separation", "heading_change", "density", "overlaps"} <= set(
+        domain.stats
+    )
+    assert all(np.isfinite(v) for v in domain.stats.values())
+    for split in ("train", "test"):
+        windows = domain.windows(split)
+        assert windows is not None and np.isfinite(windows.positions).all()
+
+
+def test_shipped_families_live_in_the_scenarios_folder():
+    names = {p.stem for p in SCENARIOS_DIR.glob("*.toml")}
+    assert {
+        "crowd_noise",
+        "crowd_radius",
+        "crowd_density",
+        "eth_ucy",
+        "highway_density",
+        "highway_noise",
+        "merge_density",
+    } <= names
+
+
+@pytest.mark.parametrize("name", sorted(METHODS))
+def test_method_contract(name):
+    cls = METHODS[name]
+    assert issubclass(cls, Method) and cls.name == name and cls.__doc__
+    assert "Example" in sys.modules[cls.__module__].__doc__  # Mammoth-style: name, doc, example
+    assert dataclasses.is_dataclass(cls.Options)
+    model = cls(ModelConfig()).build_model()
+    assert callable(model.predict) and (not cls.trains or callable(model.loss))

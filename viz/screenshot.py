@@ -1,0 +1,103 @@
+"""``python -m viz.screenshot FILE.rrd OUT.png``: the web viewer rendered by headless Chromium.
+
+Serves the recording on 127.0.0.1 (``viz.serve``), loads the viewer in Debian's ``chromium`` with
+SwiftShader's software WebGL (no GPU needed), and saves a screenshot. Used to check that the
+viewer renders, and for the README's picture.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from viz.serve import command
+
+CHROMIUM_FLAGS = [
+    "--headless=new",
+    "--no-sandbox",
+    "--use-gl=angle",
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
+    "--ignore-gpu-blocklist",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def screenshot(recording: Path, out: Path, size: str = "1600,900", budget_ms: int = 60000) -> Path:
+    """Render ``recording`` in the web viewer and save ``out``; raises RuntimeError on failure."""
+    browser = shutil.which("chromium") or shutil.which("chromium-browser")
+    if browser is None:
+        raise RuntimeError("no chromium on PATH (Debian: apt-get install chromium)")
+    web, grpc = free_port(), free_port()
+    with tempfile.TemporaryDirectory() as tmp:
+        env = {**os.environ, "XDG_CONFIG_HOME": tmp}
+        server = subprocess.Popen(
+            command(recording, web, grpc),
+            env=env,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+        try:
+            for _ in range(100):
+                with socket.socket() as s:
+                    if s.connect_ex(("127.0.0.1", web)) == 0:
+                        break
+                time.sleep(0.1)
+            url = f"http://127.0.0.1:{web}/?url=rerun%2Bhttp://127.0.0.1:{grpc}/proxy"
+            out.parent.mkdir(parents=True, exist_ok=True)
+            subprocess.run(
+                [
+                    browser,
+                    *CHROMIUM_FLAGS,
+                    f"--user-data-dir={tmp}/chromium",
+                    f"--window-size={size}",
+                    f"--virtual-time-budget={budget_ms}",
+                    f"--screenshot={out.resolve()}",
+                    url,
+                ],
+                env=env,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+                timeout=180,
+                check=True,
+            )
+        finally:
+            server.terminate()
+            server.wait(timeout=20)
+    if not out.exists():
+        raise RuntimeError("chromium wrote no screenshot")
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="viz.screenshot", description=__doc__.splitlines()[0])
+    p.add_argument("recording", type=Path)
+    p.add_argument("out", type=Path)
+    args = p.parse_args(argv)
+    try:
+        print(screenshot(args.recording, args.out))
+    except (RuntimeError, subprocess.SubprocessError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
