@@ -2,7 +2,6 @@
 
 import os
 import shutil
-import socket
 import subprocess
 import sys
 import time
@@ -14,7 +13,7 @@ import numpy as np
 import pytest
 from rerun.chunk import RrdReader
 
-from viz.serve import command
+from viz.serve import command, free_port, wait_for_port
 
 RERUN = str(Path(sys.executable).with_name("rerun"))
 TASKS = ("crowd_noise_0.1", "crowd_noise_0.2")
@@ -114,12 +113,6 @@ def test_figures_are_written(recorded):
         assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def test_live_stream_reaches_a_local_viewer_server(tmp_path, env):
     port = free_port()
     saved = tmp_path / "live.rrd"
@@ -130,11 +123,7 @@ def test_live_stream_reaches_a_local_viewer_server(tmp_path, env):
         stderr=subprocess.DEVNULL,
     )
     try:
-        for _ in range(100):
-            with socket.socket() as s:
-                if s.connect_ex(("127.0.0.1", port)) == 0:
-                    break
-            time.sleep(0.1)
+        assert wait_for_port(port)
         result = quick_run(
             tmp_path / "run",
             env,

@@ -10,14 +10,12 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
-import socket
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
-from viz.serve import command
+from viz.serve import command, free_port, wait_for_port
 
 CHROMIUM_FLAGS = [
     "--headless=new",
@@ -32,12 +30,6 @@ CHROMIUM_FLAGS = [
     "--disable-component-update",
     "--disable-sync",
 ]
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def screenshot(recording: Path, out: Path, size: str = "1600,900", budget_ms: int = 60000) -> Path:
@@ -55,11 +47,7 @@ def screenshot(recording: Path, out: Path, size: str = "1600,900", budget_ms: in
             stderr=subprocess.DEVNULL,
         )
         try:
-            for _ in range(100):
-                with socket.socket() as s:
-                    if s.connect_ex(("127.0.0.1", web)) == 0:
-                        break
-                time.sleep(0.1)
+            wait_for_port(web)
             url = f"http://127.0.0.1:{web}/?url=rerun%2Bhttp://127.0.0.1:{grpc}/proxy"
             out.parent.mkdir(parents=True, exist_ok=True)
             subprocess.run(
