@@ -38,6 +38,8 @@ def quick_run(out: Path, env, *extra: str) -> subprocess.CompletedProcess:
             "c2inet-online,finetune,cv",
             "--out",
             str(out),
+            "--cache",
+            str(out.parent / "cache"),
             *extra,
         ],
         capture_output=True,
