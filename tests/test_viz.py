@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from rerun.chunk import RrdReader
 
-from viz.serve import command, free_port, wait_for_port
+from viz.serve import command, free_port, launch, stop, wait_for_port
 
 RERUN = str(Path(sys.executable).with_name("rerun"))
 TASKS = ("crowd_noise_0.1", "crowd_noise_0.2")
@@ -118,9 +118,9 @@ def test_figures_are_written(recorded):
 def test_live_stream_reaches_a_local_viewer_server(tmp_path, env):
     port = free_port()
     saved = tmp_path / "live.rrd"
-    server = subprocess.Popen(
+    server = launch(
         [RERUN, "--bind", "127.0.0.1", "--port", str(port), "--save", str(saved)],
-        env=env,
+        env,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
@@ -136,8 +136,8 @@ def test_live_stream_reaches_a_local_viewer_server(tmp_path, env):
         assert result.returncode == 0, result.stderr
         time.sleep(1.0)
     finally:
-        server.terminate()
-        server.wait(timeout=20)
+        stop(server)
+    assert not wait_for_port(port, 1.0)  # the server and its binary are gone
     assert not (tmp_path / "run" / "recording.rrd").exists()
     rows = rows_per_entity(saved)
     assert rows["/tasks/crowd_noise_0.2/scenes/0/finetune/predictions"] == 2
@@ -176,8 +176,9 @@ def test_web_viewer_serves_on_loopback_only(recorded, env):
                 time.sleep(0.2)
         assert page and b"<html" in page.lower()
     finally:
-        server.terminate()
+        server.terminate()  # viz.serve ends its viewer server on SIGTERM
         server.wait(timeout=20)
+    assert not wait_for_port(web_port, 1.0)
 
 
 def test_bad_rerun_option_is_rejected(env, tmp_path):

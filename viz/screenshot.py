@@ -15,7 +15,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from viz.serve import command, free_port, wait_for_port
+from viz.serve import command, free_port, launch, stop, wait_for_port
 
 CHROMIUM_FLAGS = [
     "--headless=new",
@@ -40,11 +40,8 @@ def screenshot(recording: Path, out: Path, size: str = "1600,900", budget_ms: in
     web, grpc = free_port(), free_port()
     with tempfile.TemporaryDirectory() as tmp:
         env = {**os.environ, "XDG_CONFIG_HOME": tmp}
-        server = subprocess.Popen(
-            command(recording, web, grpc),
-            env=env,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
+        server = launch(
+            command(recording, web, grpc), env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
         )
         try:
             wait_for_port(web)
@@ -67,8 +64,7 @@ def screenshot(recording: Path, out: Path, size: str = "1600,900", budget_ms: in
                 check=True,
             )
         finally:
-            server.terminate()
-            server.wait(timeout=20)
+            stop(server)
     if not out.exists():
         raise RuntimeError("chromium wrote no screenshot")
     return out

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
+import signal
 import socket
 import subprocess
 import sys
@@ -35,6 +36,31 @@ def wait_for_port(port: int, seconds: float = 10.0) -> bool:
     return False
 
 
+def launch(cmd: list[str], env: dict[str, str], **popen) -> subprocess.Popen:
+    """Start ``cmd`` in a process group of its own, so :func:`stop` ends all of it.
+
+    ``rerun`` on PATH is a Python wrapper around the real binary: ending the wrapper alone
+    would leave the viewer server running.
+    """
+    return subprocess.Popen(cmd, env=env, start_new_session=True, **popen)
+
+
+def stop(process: subprocess.Popen, timeout: float = 10.0) -> None:
+    """End ``process`` and everything it started (its process group)."""
+    for sig in (signal.SIGTERM, signal.SIGKILL):
+        try:
+            os.killpg(process.pid, sig)
+        except ProcessLookupError:
+            return
+        try:
+            process.wait(timeout=timeout)
+            os.killpg(process.pid, 0)  # still a member alive? then escalate
+        except (subprocess.TimeoutExpired, ProcessLookupError):
+            if sig is signal.SIGTERM:
+                continue
+            return
+
+
 def command(path: Path, web_port: int, grpc_port: int) -> list[str]:
     rerun = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
     return [
@@ -48,6 +74,10 @@ def command(path: Path, web_port: int, grpc_port: int) -> list[str]:
         str(grpc_port),
         str(path),
     ]
+
+
+def _interrupt(*_) -> None:
+    raise KeyboardInterrupt
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -65,10 +95,14 @@ def main(argv: list[str] | None = None) -> int:
     )  # no analytics file in ~
     grpc = f"rerun%2Bhttp://127.0.0.1:{args.grpc_port}/proxy"
     print(f"serving {args.recording} at http://127.0.0.1:{args.web_port}/?url={grpc}", flush=True)
+    server = launch(command(args.recording, args.web_port, args.grpc_port), env)
+    signal.signal(signal.SIGTERM, _interrupt)
     try:
-        return subprocess.call(command(args.recording, args.web_port, args.grpc_port), env=env)
+        return server.wait()
     except KeyboardInterrupt:
         return 0
+    finally:
+        stop(server)
 
 
 if __name__ == "__main__":
