@@ -46,18 +46,16 @@ def launch(cmd: list[str], env: dict[str, str], **popen) -> subprocess.Popen:
 
 
 def stop(process: subprocess.Popen, timeout: float = 10.0) -> None:
-    """End ``process`` and everything it started (its process group)."""
+    """End ``process`` and everything it started (its process group); return once all are gone."""
     for sig in (signal.SIGTERM, signal.SIGKILL):
+        deadline = time.monotonic() + timeout
         try:
             os.killpg(process.pid, sig)
+            while time.monotonic() < deadline:
+                process.poll()  # reap the group leader
+                os.killpg(process.pid, 0)  # raises once no member is left
+                time.sleep(0.05)
         except ProcessLookupError:
-            return
-        try:
-            process.wait(timeout=timeout)
-            os.killpg(process.pid, 0)  # still a member alive? then escalate
-        except (subprocess.TimeoutExpired, ProcessLookupError):
-            if sig is signal.SIGTERM:
-                continue
             return
 
 
