@@ -195,4 +195,4 @@ def test_headless_chromium_renders_the_web_viewer(recorded, tmp_path):
     image = imread(screenshot(recorded / "recording.rrd", tmp_path / "viewer.png", budget_ms=60000))
     assert image.shape[:2] == (900, 1600)
     # a rendered viewer has panels, text and trajectories, not one background colour
-    assert len(np.unique(image.reshape(-1, image.shape[-1]), axis=0)) > 100  # a blank page has < 10
+    assert len(np.unique(image.reshape(-1, image.shape[-1]), axis=0)) > 500  # blank: < 10

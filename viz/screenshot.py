@@ -15,8 +15,11 @@ import sys
 import tempfile
 from pathlib import Path
 
+import numpy as np
+
 from viz.serve import command, free_port, launch, stop, wait_for_port
 
+MIN_COLOURS = 500  # a blank page has under 10, the loading screen a few dozen
 CHROMIUM_FLAGS = [
     "--headless=new",
     "--no-sandbox",
@@ -32,7 +35,17 @@ CHROMIUM_FLAGS = [
 ]
 
 
-def screenshot(recording: Path, out: Path, size: str = "1600,900", budget_ms: int = 60000) -> Path:
+def rendered(png: Path) -> bool:
+    """True when the picture shows a drawn viewer, not a blank or loading page (few colours)."""
+    from matplotlib.image import imread
+
+    image = imread(png)
+    return len(np.unique(image.reshape(-1, image.shape[-1]), axis=0)) > MIN_COLOURS
+
+
+def screenshot(
+    recording: Path, out: Path, size: str = "1600,900", budget_ms: int = 60000, attempts: int = 3
+) -> Path:
     """Render ``recording`` in the web viewer and save ``out``; raises RuntimeError on failure."""
     browser = shutil.which("chromium") or shutil.which("chromium-browser")
     if browser is None:
@@ -47,26 +60,29 @@ def screenshot(recording: Path, out: Path, size: str = "1600,900", budget_ms: in
             wait_for_port(web)
             url = f"http://127.0.0.1:{web}/?url=rerun%2Bhttp://127.0.0.1:{grpc}/proxy"
             out.parent.mkdir(parents=True, exist_ok=True)
-            subprocess.run(
-                [
-                    browser,
-                    *CHROMIUM_FLAGS,
-                    f"--user-data-dir={tmp}/chromium",
-                    f"--window-size={size}",
-                    f"--virtual-time-budget={budget_ms}",
-                    f"--screenshot={out.resolve()}",
-                    url,
-                ],
-                env=env,
-                stdout=subprocess.DEVNULL,
-                stderr=subprocess.DEVNULL,
-                timeout=180,
-                check=True,
-            )
+            for attempt in range(1, attempts + 1):  # a loaded machine may still show the loader
+                subprocess.run(
+                    [
+                        browser,
+                        *CHROMIUM_FLAGS,
+                        f"--user-data-dir={tmp}/chromium",
+                        f"--window-size={size}",
+                        f"--virtual-time-budget={budget_ms * attempt}",
+                        f"--screenshot={out.resolve()}",
+                        url,
+                    ],
+                    env=env,
+                    stdout=subprocess.DEVNULL,
+                    stderr=subprocess.DEVNULL,
+                    timeout=300,
+                    check=True,
+                )
+                if out.exists() and rendered(out):
+                    break
         finally:
             stop(server)
-    if not out.exists():
-        raise RuntimeError("chromium wrote no screenshot")
+    if not out.exists() or not rendered(out):
+        raise RuntimeError(f"the viewer did not render within {attempts} attempts")
     return out
 
 
