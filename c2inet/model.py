@@ -32,6 +32,7 @@ class ModelConfig:
     beta_z: float = 1.0
     n_mc: int = 10  # Monte Carlo samples of C for the KL to the mixture
     c_source: str = "posterior"  # where test-time C comes from: posterior | prior
+    residual: bool = True  # decoder steps change the last displacement (constant-velocity prior)
 
 
 class Predictor(nn.Module):
@@ -41,7 +42,7 @@ class Predictor(nn.Module):
         super().__init__()
         self.config = config
         self.latent_dim = latent_dim or config.latent_dim
-        self.backbone = BACKBONES[config.backbone](self.latent_dim)
+        self.backbone = BACKBONES[config.backbone](self.latent_dim, residual=config.residual)
 
     def context(self, batch: Batch) -> torch.Tensor:
         return self.backbone.encode(batch.obs_rel / batch.scale, batch)

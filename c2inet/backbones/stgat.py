@@ -57,15 +57,24 @@ class STGATEncoder(nn.Module):
 
 
 class Decoder(nn.Module):
-    """Autoregressive LSTM decoder of future displacements, conditioned on a latent vector."""
+    """Autoregressive LSTM decoder of future displacements, conditioned on a latent vector.
 
-    def __init__(self, context_dim: int, latent_dim: int, hidden=64, embed=16, pred_len=12):
+    With ``residual`` each step outputs the change of displacement (an acceleration), so an
+    untrained decoder already extrapolates at constant velocity and learning refines it.
+    """
+
+    def __init__(
+        self, context_dim: int, latent_dim: int, hidden=64, embed=16, pred_len=12, residual=False
+    ):
         super().__init__()
-        self.pred_len = pred_len
+        self.pred_len, self.residual = pred_len, residual
         self.init = nn.Sequential(nn.Linear(context_dim + latent_dim, hidden), nn.Tanh())
         self.embed = nn.Linear(2, embed)
         self.cell = nn.LSTMCell(embed, hidden)
         self.out = nn.Linear(hidden, 2)
+        if residual:  # start exactly at constant velocity
+            nn.init.zeros_(self.out.weight)
+            nn.init.zeros_(self.out.bias)
 
     def forward(self, context: torch.Tensor, latent: torch.Tensor, last_rel: torch.Tensor):
         # context: (S, N, C); latent: (S, N, L); last_rel: (N, 2) -> (12, S, N, 2)
@@ -76,7 +85,7 @@ class Decoder(nn.Module):
         outputs = []
         for _ in range(self.pred_len):
             h, c = self.cell(self.embed(step), (h, c))
-            step = self.out(h)
+            step = step + self.out(h) if self.residual else self.out(h)
             outputs.append(step)
         return torch.stack(outputs).unflatten(1, (samples, agents))
 
@@ -84,10 +93,12 @@ class Decoder(nn.Module):
 class STGAT(nn.Module):
     """The backbone as one module: ``encode`` then ``decode`` with any latent."""
 
-    def __init__(self, latent_dim: int, pred_len: int = 12):
+    def __init__(self, latent_dim: int, pred_len: int = 12, residual: bool = False):
         super().__init__()
         self.encoder = STGATEncoder()
-        self.decoder = Decoder(self.encoder.out_dim, latent_dim, pred_len=pred_len)
+        self.decoder = Decoder(
+            self.encoder.out_dim, latent_dim, pred_len=pred_len, residual=residual
+        )
         self.out_dim = self.encoder.out_dim
 
     def encode(self, obs_rel: torch.Tensor, batch: Batch) -> torch.Tensor:
