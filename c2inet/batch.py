@@ -40,9 +40,13 @@ class Batch:
         Observed frames only (no leak); floored at MIN_SCALE for scenes standing still.
         """
         step = self.obs_rel[1:].norm(dim=-1).mean(0)  # (N,)
-        sums = torch.zeros(self.num_scenes, dtype=step.dtype).index_add(0, self.scene_of, step)
-        counts = (self.scene_start[1:] - self.scene_start[:-1]).to(step.dtype)
-        return (sums / counts).clamp_min(MIN_SCALE)[self.scene_of, None]
+        return self.per_scene_mean(step).clamp_min(MIN_SCALE)[self.scene_of, None]
+
+    def per_scene_mean(self, per_agent: torch.Tensor) -> torch.Tensor:
+        """(N,) per agent -> (B,) mean over the agents of each scene."""
+        sums = torch.zeros(self.num_scenes, dtype=per_agent.dtype)
+        sums = sums.index_add(0, self.scene_of, per_agent)
+        return sums / (self.scene_start[1:] - self.scene_start[:-1]).to(per_agent.dtype)
 
     @property
     def fut_rel(self) -> torch.Tensor:
@@ -91,8 +95,4 @@ def batches(
 
 def scene_mean(per_agent: torch.Tensor, batch: Batch) -> torch.Tensor:
     """Mean over scenes of the per-scene mean over agents (GCRL's erm_loss, scaled by 1/B)."""
-    sums = torch.zeros(batch.num_scenes, dtype=per_agent.dtype).index_add(
-        0, batch.scene_of, per_agent
-    )
-    counts = (batch.scene_start[1:] - batch.scene_start[:-1]).to(per_agent.dtype)
-    return (sums / counts).mean()
+    return batch.per_scene_mean(per_agent).mean()

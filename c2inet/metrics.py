@@ -15,22 +15,30 @@ def displacement_errors(pred: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray
     return distance.mean(axis=1), distance[:, -1]
 
 
-def best_of_k(errors: np.ndarray, scene_start: np.ndarray, mode: str) -> np.ndarray:
-    """Per-agent error after choosing the best of K samples; errors (K, N) -> (N,).
+METRICS = ("ade", "fde", "ade_agent", "fde_agent", "ade_k1", "fde_k1")
+
+
+def best_sample(errors: np.ndarray, scene_start: np.ndarray, mode: str) -> np.ndarray:
+    """Index of the chosen sample for every agent; errors (K, N) -> (N,).
 
     ``joint``: one sample per scene, the one with the smallest sum over the scene's agents.
     ``agent``: each agent's own smallest error.
     """
     if mode == "agent":
-        return errors.min(axis=0)
+        return errors.argmin(axis=0)
     if mode != "joint":
         raise ValueError(f"unknown best-of-K mode {mode!r}")
     counts = np.diff(scene_start)
     scene_of = np.repeat(np.arange(len(counts)), counts)
     totals = np.zeros((errors.shape[0], len(counts)))
     np.add.at(totals, (slice(None), scene_of), errors)
-    best = totals.argmin(axis=0)  # (scenes,)
-    return errors[best[scene_of], np.arange(errors.shape[1])]
+    return totals.argmin(axis=0)[scene_of]
+
+
+def best_of_k(errors: np.ndarray, scene_start: np.ndarray, mode: str) -> np.ndarray:
+    """Per-agent error after choosing the best of K samples (see :func:`best_sample`)."""
+    chosen = best_sample(errors, scene_start, mode)
+    return errors[chosen, np.arange(errors.shape[1])]
 
 
 def evaluate_predictions(

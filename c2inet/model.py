@@ -34,6 +34,14 @@ class ModelConfig:
     c_source: str = "posterior"  # where test-time C comes from: posterior | prior
     residual: bool = True  # decoder steps change the last displacement (constant-velocity prior)
 
+    def __post_init__(self):
+        if self.backbone not in BACKBONES:
+            raise ValueError(
+                f"backbone {self.backbone!r} is unknown (known: {', '.join(BACKBONES)})"
+            )
+        if self.c_source not in ("posterior", "prior"):
+            raise ValueError(f"c_source {self.c_source!r}: expected posterior or prior")
+
 
 class Predictor(nn.Module):
     """A backbone predicting future displacements from a latent drawn from N(0, I)."""
@@ -132,9 +140,6 @@ class C2INetModel(Predictor):
 
 class ConstantVelocity(nn.Module):
     """Repeats the last observed displacement: no training, the floor every learner must beat."""
-
-    def __init__(self, *_, **__):
-        super().__init__()
 
     @torch.no_grad()
     def predict(self, batch: Batch, samples: int) -> torch.Tensor:

@@ -51,6 +51,12 @@ class GaussianMixture:
         noise = torch.randn(n, self.means.shape[1], generator=generator)
         return self.means[k] + (0.5 * self.logvars[k]).exp() * noise
 
+    def without(self, index: int) -> GaussianMixture:
+        """The mixture with component ``index`` removed and the weights renormalised."""
+        keep = torch.arange(len(self)) != index
+        weights = self.weights[keep]
+        return GaussianMixture(self.means[keep], self.logvars[keep], weights / weights.sum())
+
     def detached(self) -> GaussianMixture:
         return GaussianMixture(
             self.means.detach().clone(),
@@ -131,11 +137,7 @@ class PriorQueue:
         )
 
     def remove(self, index: int) -> None:
-        keep = torch.arange(len(self)) != index
-        m = self.mixture
-        self.mixture = GaussianMixture(
-            m.means[keep], m.logvars[keep], m.weights[keep] / m.weights[keep].sum()
-        )
+        self.mixture = self.mixture.without(index)
 
     # --- Eq 8: the new component -------------------------------------------------------------
     def fit_component(self, target: GaussianMixture, generator: torch.Generator | None = None):
@@ -206,23 +208,19 @@ class PriorQueue:
         """
         removed = []
         cfg = self.config
+
+        def score(mixture: GaussianMixture, c: torch.Tensor) -> float:
+            value = mixture.log_prob(c).mean()
+            if cfg.divergence:
+                value = value + cfg.lambda_div * mixture.mean_pairwise_skl()
+            return value.item()
+
         while cfg.pruning and len(self) > cfg.capacity:
             m = self.mixture
             c = m.sample(cfg.target_samples, generator)
-            full = m.log_prob(c).mean() + (
-                cfg.lambda_div * m.mean_pairwise_skl() if cfg.divergence else 0
-            )
-            costs = []
-            for k in range(len(self)):
-                keep = torch.arange(len(self)) != k
-                rest = GaussianMixture(
-                    m.means[keep], m.logvars[keep], m.weights[keep] / m.weights[keep].sum()
-                )
-                value = rest.log_prob(c).mean()
-                if cfg.divergence:
-                    value = value + cfg.lambda_div * rest.mean_pairwise_skl()
-                costs.append((full - value).item())
-            index = int(torch.tensor(costs).argmin())
+            full = score(m, c)
+            costs = [full - score(m.without(k), c) for k in range(len(m))]
+            index = min(range(len(costs)), key=costs.__getitem__)
             self.remove(index)
             removed.append(index)
         return removed

@@ -6,9 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from c2inet.metrics import average_seen, backward_transfer, forgetting
-
-MATRIX_KEYS = ("ade", "fde", "ade_agent", "fde_agent", "ade_k1", "fde_k1")
+from c2inet.metrics import METRICS, average_seen, backward_transfer, forgetting
 
 
 def _clean(array: np.ndarray) -> list:
@@ -23,16 +21,16 @@ def summarise(
 ) -> dict[str, Any]:
     """Mean (and std over seeds) of each matrix, with the derived continual scores of the mean."""
     out: dict[str, Any] = {"seeds": len(runs)}
-    for key in MATRIX_KEYS:
+    for key in METRICS:
         stack = np.stack([r[key] for r in runs])
         out[key] = _clean(stack.mean(0))
         out[f"{key}_std"] = _clean(stack.std(0))
-    ade, fde = np.stack([r["ade"] for r in runs]), np.stack([r["fde"] for r in runs])
-    out["avg_seen_ade"] = [round(float(v), 6) for v in np.mean([average_seen(m) for m in ade], 0)]
-    out["avg_seen_fde"] = [round(float(v), 6) for v in np.mean([average_seen(m) for m in fde], 0)]
-    out["avg_seen_ade_std"] = [
-        round(float(v), 6) for v in np.std([average_seen(m) for m in ade], 0)
-    ]
+    ade = [r["ade"] for r in runs]
+    seen_ade = np.array([average_seen(m) for m in ade])
+    seen_fde = np.array([average_seen(r["fde"]) for r in runs])
+    out["avg_seen_ade"] = [round(float(v), 6) for v in seen_ade.mean(0)]
+    out["avg_seen_fde"] = [round(float(v), 6) for v in seen_fde.mean(0)]
+    out["avg_seen_ade_std"] = [round(float(v), 6) for v in seen_ade.std(0)]
     per_task = np.mean([forgetting(m) for m in ade], 0) if len(ade[0]) > 1 else np.zeros(0)
     out["forgetting_ade_per_task"] = [round(float(v), 6) for v in per_task]
     out["forgetting_ade"] = round(float(per_task.mean()), 6) if per_task.size else 0.0

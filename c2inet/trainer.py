@@ -20,9 +20,7 @@ import torch
 from c2inet.batch import batches
 from c2inet.data import Windows
 from c2inet.methods.base import Method, TaskContext
-from c2inet.metrics import evaluate_predictions
-
-METRICS = ("ade", "fde", "ade_agent", "fde_agent", "ade_k1", "fde_k1")
+from c2inet.metrics import METRICS, evaluate_predictions
 
 
 @dataclass
@@ -65,25 +63,29 @@ def _generator(seed: int, method: str) -> np.random.Generator:
     )
 
 
-def evaluate(
+def sample_predictions(
     model: torch.nn.Module, windows: Windows, k: int, seed: int, batch_scenes: int = 256
-) -> dict[str, float]:
-    """Metrics of ``model`` on ``windows`` with ``k`` samples, reproducible for a seed."""
-    preds, truths, counts = [], [], []
+) -> np.ndarray:
+    """``k`` sampled futures of every agent of ``windows``, (K, T, N, 2) in metres.
+
+    Reproducible for a seed, and the global RNG stream of training is left untouched.
+    """
     was_training = getattr(model, "training", False)
     model.eval()
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(seed)
-        for batch in batches(windows, batch_scenes):
-            preds.append(model.predict(batch, k).numpy())
-            truths.append(batch.fut.numpy())
-            counts.append(np.diff(batch.scene_start.numpy()))
+        preds = [model.predict(batch, k).numpy() for batch in batches(windows, batch_scenes)]
     model.train(was_training)
-    counts = np.concatenate(counts)
-    scene_start = np.concatenate([[0], np.cumsum(counts)])
-    return evaluate_predictions(
-        np.concatenate(preds, axis=2), np.concatenate(truths, axis=1), scene_start
-    )
+    return np.concatenate(preds, axis=2)
+
+
+def evaluate(
+    model: torch.nn.Module, windows: Windows, k: int, seed: int, batch_scenes: int = 256
+) -> dict[str, float]:
+    """Metrics of ``model`` on ``windows`` with ``k`` samples, reproducible for a seed."""
+    pred = sample_predictions(model, windows, k, seed, batch_scenes)
+    truth = windows.positions[:, windows.obs_len :].transpose(1, 0, 2)
+    return evaluate_predictions(pred, truth, windows.scene_start)
 
 
 class ContinualTrainer:

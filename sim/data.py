@@ -52,6 +52,23 @@ class Domain:
         return Windows.concat(parts) if parts else None
 
 
+def window_members(
+    scene: Scene, length: int, stride: int = 1, min_agents: int = 1
+) -> tuple[np.ndarray, np.ndarray]:
+    """Start frames of the kept windows, and which agents each keeps, (W,) and (W, agents).
+
+    A window keeps the agents present in all its frames, and is kept if it has at least
+    ``min_agents`` of them.
+    """
+    present = ~np.isnan(scene.positions[..., 0])  # (frames, agents)
+    # agents present in every frame of [t, t + length): a sliding-window count over frames
+    counts = np.cumsum(np.vstack([np.zeros((1, present.shape[1]), int), present]), axis=0)
+    starts = np.arange(0, max(scene.num_frames - length + 1, 0), stride)
+    full = (counts[starts + length] - counts[starts]) == length  # (windows, agents)
+    keep = full.sum(1) >= min_agents
+    return starts[keep], full[keep]
+
+
 def cut_windows(
     scene: Scene,
     stride: int = 1,
@@ -59,21 +76,9 @@ def cut_windows(
     obs_len: int = OBS_LEN,
     pred_len: int = PRED_LEN,
 ) -> Windows | None:
-    """Windows of ``obs_len + pred_len`` frames every ``stride`` frames.
-
-    A window keeps the agents present in all its frames, and is kept if it has at least
-    ``min_agents`` of them.
-    """
+    """Windows of ``obs_len + pred_len`` frames every ``stride`` frames (see window_members)."""
     length = obs_len + pred_len
-    if scene.num_frames < length:
-        return None
-    present = ~np.isnan(scene.positions[..., 0])  # (frames, agents)
-    # agents present in every frame of [t, t + length): a sliding-window count over frames
-    counts = np.cumsum(np.vstack([np.zeros((1, present.shape[1]), int), present]), axis=0)
-    starts = np.arange(0, scene.num_frames - length + 1, stride)
-    full = (counts[starts + length] - counts[starts]) == length  # (windows, agents)
-    keep = full.sum(1) >= min_agents
-    starts, full = starts[keep], full[keep]
+    starts, full = window_members(scene, length, stride, min_agents)
     if len(starts) == 0:
         return None
     window_idx, agent_idx = np.nonzero(full)

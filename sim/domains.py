@@ -11,7 +11,7 @@ import numpy as np
 
 from sim.data import Domain
 from sim.families import Splits
-from sim.generators import get_generator
+from sim.generators import child_seed, get_generator
 from sim.io import read_parquet, write_parquet
 from sim.scenario import DomainSpec
 
@@ -73,6 +73,4 @@ def build_domain(
 def rollout_scene(spec: DomainSpec, root_seed: int, frames: int):
     """A longer episode of the domain for playback (its own child seed), or None."""
     generator = get_generator(spec.family.generator)()
-    seed = domain_seed(root_seed, spec)
-    seed = np.random.SeedSequence(seed.entropy, spawn_key=(*seed.spawn_key, 99))
-    return generator.rollout(spec.knobs(), seed, frames)
+    return generator.rollout(spec.knobs(), child_seed(domain_seed(root_seed, spec), 99), frames)

@@ -13,7 +13,7 @@ import platform
 import re
 import sys
 import time
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -23,11 +23,12 @@ from tqdm import tqdm
 
 from c2inet.backbones import BACKBONES
 from c2inet.methods.base import build_options, get_method
+from c2inet.metrics import METRICS
 from c2inet.model import ModelConfig
 from c2inet.report import markdown_report, matrix_csv, summarise, text_table
 from c2inet.trainer import ContinualTrainer, Task, TrainConfig
 from sim.cli import add_workers, check_workers, guarded, parser
-from sim.data import cut_windows
+from sim.data import cut_windows, window_members
 from sim.domains import build_domain, rollout_scene
 from sim.errors import InputError
 from sim.families import Splits
@@ -85,10 +86,9 @@ def make_showcases(curriculum: list[DomainSpec], tasks: list[Task], seed: int) -
         windows = cut_windows(scene) if scene is not None else None
         show = Showcase(task.name, scenes)
         if windows is not None:
-            present = ~np.isnan(scene.positions[..., 0])
-            starts = [t for t in range(scene.num_frames - 19) if (present[t : t + 20].all(0)).any()]
+            starts, _ = window_members(scene, windows.positions.shape[1])
             show.rollout_windows = windows
-            show.rollout_frames = np.array(starts) + windows.obs_len - 1
+            show.rollout_frames = starts + windows.obs_len - 1
             rollouts[task.name] = (scene.positions, scene.agent_ids)
         showcases.append(show)
     return showcases, rollouts
@@ -199,16 +199,12 @@ def main(argv: list[str] | None = None) -> int:
         model_config = build_options(
             ModelConfig, {"backbone": args.backbone, **settings.get("model", {})}
         )
-        train_settings = settings.get("train", {})
-        build_options(TrainConfig, train_settings)
+        train_settings = {**settings.get("train", {}), "epochs": epochs, "k": k, "seed": args.seed}
+        train_config = build_options(TrainConfig, train_settings)
         for name in methods:
             get_method(name)(model_config, settings.get(name))
     except ValueError as error:
         raise InputError(f"--set: {error}") from None
-    if model_config.c_source not in ("posterior", "prior"):
-        raise InputError(
-            f"--set model.c_source={model_config.c_source!r}: expected posterior or prior"
-        )
     out = args.out or run_folder(args.scenario)
     started = time.perf_counter()
     tasks, domains = make_tasks(curriculum, args.seed, args.quick, args.cache, args.workers)
@@ -235,9 +231,7 @@ def main(argv: list[str] | None = None) -> int:
     drawn: dict[str, dict] = {}
     with tqdm(total=len(jobs) * len(tasks), desc="tasks", unit="task", file=sys.stderr) as bar:
         for name, seed_index in jobs:
-            config = TrainConfig(
-                **{**train_settings, "epochs": epochs, "k": k, "seed": args.seed + seed_index}
-            )
+            config = replace(train_config, seed=args.seed + seed_index)
             observers = [lambda event, _data: bar.update(1) if event == "task_end" else None]
             if recorder is not None and seed_index == 0:  # the first seed is drawn
                 observer = RecordingObserver(recorder, name, showcases, k, seed=args.seed)
@@ -272,7 +266,7 @@ def main(argv: list[str] | None = None) -> int:
     }
     write_text_atomic(out / "metrics.json", json.dumps(metrics, indent=1) + "\n")
     for name, result in results.items():
-        for key in ("ade", "fde", "ade_k1", "fde_k1", "ade_agent", "fde_agent"):
+        for key in METRICS:
             write_text_atomic(
                 out / "matrices" / f"{name}_{key}.csv", matrix_csv(result[key], task_names)
             )
@@ -283,9 +277,7 @@ def main(argv: list[str] | None = None) -> int:
         "methods": methods,
         "quick": args.quick,
         "model": asdict(model_config),
-        "train": asdict(
-            TrainConfig(**{**train_settings, "epochs": epochs, "k": k, "seed": args.seed})
-        ),
+        "train": asdict(train_config),
         "settings": settings,
         "versions": versions(),
         "domains": [domain_summary(d) for d in domains],

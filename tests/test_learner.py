@@ -6,7 +6,7 @@ import torch
 
 from c2inet.batch import make_batch
 from c2inet.data import Windows
-from c2inet.methods.base import METHODS, TaskContext, get_method
+from c2inet.methods.base import TaskContext, get_method
 from c2inet.model import C2INetModel, ModelConfig, Predictor
 from c2inet.trainer import ContinualTrainer, Task, TrainConfig, load_checkpoint
 from sim.domains import build_domain
@@ -90,7 +90,6 @@ def tiny_tasks(scenario="crowd_noise_0.1,0.2", train=8):
     "name", sorted(["finetune", "ewc", "coresets", "c2inet-online", "joint", "cv"])
 )
 def test_every_method_meets_the_contract(tmp_path, name):
-    assert name in METHODS or get_method(name)
     method = get_method(name)(ModelConfig())
     result = ContinualTrainer(
         method, tiny_tasks(), TrainConfig(epochs=2, k=3), checkpoint_dir=tmp_path

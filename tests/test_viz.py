@@ -186,7 +186,11 @@ def test_bad_rerun_option_is_rejected(env, tmp_path):
     assert result.returncode == 2 and "--rerun" in result.stderr
 
 
-@pytest.mark.skipif(shutil.which("chromium") is None, reason="Debian chromium not installed")
+@pytest.mark.skipif(
+    shutil.which("chromium") is None or not os.environ.get("C2I_BROWSER_TEST"),
+    reason="opt-in (C2I_BROWSER_TEST=1, needs Debian chromium): whether the viewer has drawn "
+    "when Chromium's virtual-time budget ends depends on real-time loading, so it is not a CI gate",
+)
 def test_headless_chromium_renders_the_web_viewer(recorded, tmp_path):
     from matplotlib.image import imread
 

@@ -6,11 +6,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import torch
 
-from c2inet.batch import make_batch
 from c2inet.data import Windows
-from c2inet.metrics import best_of_k, displacement_errors
+from c2inet.metrics import best_sample, displacement_errors
+from c2inet.trainer import sample_predictions
 from viz.recording import RunRecorder
 
 
@@ -46,13 +45,7 @@ class RecordingObserver:
 
     def _predict(self, model, windows: Windows, k: int) -> np.ndarray:
         """(K, agents, T, 2) absolute predictions, reproducible for the observer's seed."""
-        with torch.random.fork_rng(devices=[]):
-            torch.manual_seed(self.seed)
-            was_training = getattr(model, "training", False)
-            model.eval()
-            pred = model.predict(make_batch(windows), k).numpy()
-            model.train(was_training)
-        return pred.transpose(0, 2, 1, 3)
+        return sample_predictions(model, windows, k, self.seed).transpose(0, 2, 1, 3)
 
     def _task_end(self, data: dict[str, Any]) -> None:
         model, trained = data["model"], data["task"]
@@ -70,10 +63,7 @@ class RecordingObserver:
             obs_len = windows.obs_len
             truth = windows.positions[:, obs_len:]
             ade, _ = displacement_errors(pred.transpose(0, 2, 1, 3), truth.transpose(1, 0, 2))
-            joint = best_of_k(ade, windows.scene_start, "joint")
-            best = np.argmin(
-                np.abs(ade - joint[None]), axis=0
-            )  # the sample the joint minimum chose
+            best = best_sample(ade, windows.scene_start, "joint")
             for s in range(len(windows)):
                 agents = slice(windows.scene_start[s], windows.scene_start[s + 1])
                 self.recorder.log_scene_predictions(

@@ -13,6 +13,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
@@ -79,6 +80,7 @@ def screenshot(
                 )
                 if out.exists() and rendered(out):
                     break
+                time.sleep(2)  # let the viewer server settle before the next try
         finally:
             stop(server)
     if not out.exists() or not rendered(out):

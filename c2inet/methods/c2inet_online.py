@@ -51,17 +51,21 @@ class C2INetOnline(Method):
     def build_model(self) -> torch.nn.Module:
         return C2INetModel(self.model_config, self.queue_config)
 
-    def _current_posterior(self, ctx: TaskContext, limit: int | None = None) -> GaussianMixture:
-        """Q_cur: the aggregated posterior of the S samples under the current encoder.
-
-        ``limit`` keeps only the first posteriors: the Eq 8/9 targets use TARGET_COMPONENTS of
-        them, which estimates the same density at a fraction of the cost.
-        """
-        limit = min(self.samples, limit or self.samples)
+    def _current_posterior(self, ctx: TaskContext) -> tuple[torch.Tensor, torch.Tensor]:
+        """Means and log-variances of Q(C|X) for the S samples under the current encoder."""
         with torch.no_grad():
             mean, logvar = ctx.model.posterior_c(make_batch(ctx.train, self.sample_scenes))
-        mean, logvar = mean[:limit], logvar[:limit]
-        return GaussianMixture(mean, logvar, torch.full((len(mean),), 1 / len(mean)))
+        return mean[: self.samples], logvar[: self.samples]
+
+    def _target(
+        self, ctx: TaskContext, mean: torch.Tensor, logvar: torch.Tensor
+    ) -> GaussianMixture:
+        """T = (t-1)/t * M_old + 1/t * Q_cur, with Q_cur from the first TARGET_COMPONENTS
+        posteriors (the same density at a fraction of the cost)."""
+        mean, logvar = mean[:TARGET_COMPONENTS], logvar[:TARGET_COMPONENTS]
+        current = GaussianMixture(mean, logvar, torch.full((len(mean),), 1 / len(mean)))
+        t = ctx.index + 1
+        return current if t == 1 else mix([self.old, current], [(t - 1) / t, 1 / t])
 
     def before_task(self, ctx: TaskContext) -> None:
         agents_per_scene = max(1.0, ctx.train.agents_per_scene.mean())
@@ -69,26 +73,21 @@ class C2INetOnline(Method):
         self.sample_scenes = ctx.rng.choice(len(ctx.train), scenes, replace=False)
         queue = ctx.model.queue
         self.old = queue.mixture.detached()
-        current = self._current_posterior(ctx)
-        mean, logvar = moment_match(current.means, current.logvars)
+        posteriors = self._current_posterior(ctx)
+        mean, logvar = moment_match(*posteriors)
         t = ctx.index + 1
         if t == 1:
             queue.reset(mean, logvar)
         elif self.queue_config.weight_opt:
-            target = self._target(ctx, self._current_posterior(ctx, TARGET_COMPONENTS))
-            queue.add(mean, logvar, queue.fit_weight(mean, logvar, target))
+            queue.add(mean, logvar, queue.fit_weight(mean, logvar, self._target(ctx, *posteriors)))
         else:
             queue.add(mean, logvar, 1 / t)
-
-    def _target(self, ctx: TaskContext, current: GaussianMixture) -> GaussianMixture:
-        t = ctx.index + 1
-        return current if t == 1 else mix([self.old, current], [(t - 1) / t, 1 / t])
 
     def after_epoch(self, ctx: TaskContext, epoch: int) -> None:
         if (epoch + 1) % self.interval:
             return
         queue = ctx.model.queue
-        target = self._target(ctx, self._current_posterior(ctx, TARGET_COMPONENTS))
+        target = self._target(ctx, *self._current_posterior(ctx))
         mean, logvar = queue.fit_component(target)
         queue.add(mean, logvar, queue.fit_weight(mean, logvar, target))
 

@@ -35,8 +35,5 @@ class Coresets(Method):
         count = min(self.per_task, len(ctx.train))
         self.buffer.append(ctx.train.subset(ctx.rng.choice(len(ctx.train), count, replace=False)))
 
-    def buffer_scenes(self) -> int:
-        return sum(len(w) for w in self.buffer)
-
     def summary(self) -> dict[str, Any]:
-        return {"buffer_scenes": self.buffer_scenes()}
+        return {"buffer_scenes": sum(len(w) for w in self.buffer)}

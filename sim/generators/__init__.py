@@ -57,6 +57,11 @@ class Generator:
         raise NotImplementedError
 
 
+def child_seed(seed: np.random.SeedSequence, *keys: int) -> np.random.SeedSequence:
+    """The child of ``seed`` at ``keys`` (e.g. split, scene): stable whatever else is generated."""
+    return np.random.SeedSequence(seed.entropy, spawn_key=(*seed.spawn_key, *keys))
+
+
 def get_generator(name: str, where: str = "generator") -> type[Generator]:
     """The generator class registered under ``name``."""
     _import_builtin()

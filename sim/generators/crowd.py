@@ -23,7 +23,7 @@ from scipy.spatial import cKDTree
 
 from sim.data import SPLITS, Domain, Scene
 from sim.errors import InputError
-from sim.generators import Generator
+from sim.generators import Generator, child_seed
 from sim.options import check_range
 from sim.stats import motion_stats, proximity_stats
 
@@ -312,10 +312,7 @@ class CrowdGenerator(Generator):
         scenes: dict[str, list[Scene]] = {}
         for split_id, split in enumerate(SPLITS):
             count = getattr(splits, split)
-            scene_seeds = [
-                np.random.SeedSequence(seed.entropy, spawn_key=(*seed.spawn_key, split_id, k))
-                for k in range(count)
-            ]
+            scene_seeds = [child_seed(seed, split_id, k) for k in range(count)]
             out: list[Scene] = []
             for first in range(0, count, BATCH_SCENES):
                 batch = scene_seeds[first : first + BATCH_SCENES]

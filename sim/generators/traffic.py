@@ -24,7 +24,7 @@ import numpy as np
 
 from sim.data import SPLITS, Domain, Scene
 from sim.errors import InputError
-from sim.generators import Generator
+from sim.generators import Generator, child_seed
 from sim.options import check_range
 from sim.stats import motion_stats, proximity_stats
 
@@ -256,10 +256,7 @@ class TrafficGenerator(Generator):
     ) -> Domain:
         options = TrafficKnobs(**knobs)
         seeds = {
-            split: [
-                np.random.SeedSequence(seed.entropy, spawn_key=(*seed.spawn_key, split_id, k))
-                for k in range(getattr(splits, split))
-            ]
+            split: [child_seed(seed, split_id, k) for k in range(getattr(splits, split))]
             for split_id, split in enumerate(SPLITS)
         }
         flat = [s for split in SPLITS for s in seeds[split]]
