@@ -44,7 +44,7 @@ def test_paper_geometry_two_agents_walk_to_the_antipode_at_one_metre_per_second(
 
 
 def test_same_seed_same_trajectories_and_scene_seeds_do_not_depend_on_batching():
-    # Batching shifts scenes by SCENE_SPACING, which changes float rounding only (~1e-12 m);
+    # Batching shifts scenes by the scene spacing, which changes float rounding only (~1e-12 m);
     # the generator always uses the same batches, so its output is bit-identical.
     seeds = [np.random.SeedSequence(3, spawn_key=(k,)) for k in range(3)]
     knobs = CrowdKnobs(layout="corridor", agents=8, noise=0.3)
