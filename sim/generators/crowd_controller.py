@@ -126,6 +126,9 @@ def _visit_pairs(state, scene_size, sensing, keep, pairs, accel, aim) -> int:
         for a in range(first, last):
             members[fill[cell[a - first]]] = a
             fill[cell[a - first]] += 1
+        # Work on a copy in cell order, so that the innermost loop reads contiguous rows.
+        local = state[members]
+        local_accel = np.zeros((len(local) if len(accel) else 0, 2))
         for here in range(nx * ny):
             cx, cy = here // ny, here % ny
             for ox, oy in ((0, 0), (1, -1), (1, 0), (1, 1), (0, 1)):
@@ -133,19 +136,21 @@ def _visit_pairs(state, scene_size, sensing, keep, pairs, accel, aim) -> int:
                     continue
                 there = (cx + ox) * ny + cy + oy
                 for slot in range(start[here], start[here + 1]):
-                    a = members[slot]
                     # Within one cell, each pair once; across cells, every member of the other.
                     begin = slot + 1 if there == here else start[there]
                     for other in range(begin, start[there + 1]):
-                        b = members[other]
-                        dx, dy = state[a, 0] - state[b, 0], state[a, 1] - state[b, 1]
+                        dx = local[slot, 0] - local[other, 0]
+                        dy = local[slot, 1] - local[other, 1]
                         distance2 = dx * dx + dy * dy
                         if distance2 < keep * keep:
                             if found < len(pairs):
-                                pairs[found, 0], pairs[found, 1] = a, b
+                                pairs[found, 0], pairs[found, 1] = members[slot], members[other]
                             found += 1
                         if distance2 < sensing * sensing and len(accel):
-                            _avoid(state, accel, a, b, aim)
+                            _avoid(local, local_accel, slot, other, aim)
+        for k in range(len(local_accel)):
+            accel[members[k], 0] += local_accel[k, 0]
+            accel[members[k], 1] += local_accel[k, 1]
     return found
 
 
@@ -162,12 +167,16 @@ def _avoid(state: np.ndarray, accel: np.ndarray, i: int, j: int, aim: float) -> 
         return  # not approaching, or never that close
     root = math.sqrt(discriminant)
     tau = max(c / (-b + root), 1e-3)  # time to contact: the smaller root, computed stably
-    magnitude = TTC_K * math.exp(-tau / TTC_TAU0) / (a * tau * tau) * (2 / tau + 1 / TTC_TAU0)
-    f0 = -magnitude * (v0 - (a * x0 - b * v0) / root)
-    f1 = -magnitude * (v1 - (a * x1 - b * v1) / root)
-    norm = math.sqrt(f0 * f0 + f1 * f1)
-    if norm > MAX_FORCE:
-        f0, f1 = f0 * MAX_FORCE / norm, f1 * MAX_FORCE / norm
+    rate = 1 / tau
+    magnitude = TTC_K * math.exp(-tau / TTC_TAU0) * rate * rate / a * (2 * rate + 1 / TTC_TAU0)
+    # The force pushes along the relative position at the moment of contact.
+    along = magnitude / root
+    f0 = along * (a * x0 - b * v0) - magnitude * v0
+    f1 = along * (a * x1 - b * v1) - magnitude * v1
+    norm2 = f0 * f0 + f1 * f1
+    if norm2 > MAX_FORCE * MAX_FORCE:
+        cap = MAX_FORCE / math.sqrt(norm2)
+        f0, f1 = f0 * cap, f1 * cap
     accel[i, 0] += f0
     accel[i, 1] += f1
     accel[j, 0] -= f0
