@@ -128,10 +128,8 @@ def _place(knobs: CrowdKnobs, rng: np.random.Generator) -> tuple[np.ndarray, np.
     n, gap = knobs.num_agents, 2 * knobs.radius + 0.1
     if knobs.layout == "circle_crossing" and n == 2:  # the paper's scenes: 126 to 180 deg apart
         first = rng.uniform(-math.pi, math.pi)
-        angles = np.array([first, first + math.pi + rng.uniform(-0.3 * math.pi, 0.3 * math.pi)])
-        starts = rng.uniform(knobs.inner_radius, knobs.outer_radius, (2, 1)) * np.stack(
-            [np.cos(angles), np.sin(angles)], axis=1
-        )
+        second = first + math.pi + rng.uniform(-0.3 * math.pi, 0.3 * math.pi)
+        starts = _on_ring(knobs, rng, np.array([first, second]))
         return starts, -starts
     starts, goals = np.empty((0, 2)), np.empty((0, 2))
     for _ in range(PLACEMENT_BLOCKS):
@@ -146,11 +144,8 @@ def _place(knobs: CrowdKnobs, rng: np.random.Generator) -> tuple[np.ndarray, np.
 
 def _candidates(knobs: CrowdKnobs, rng: np.random.Generator, count: int):
     """``count`` independent draws of a start position and its goal in the knobs' layout."""
-    if knobs.layout == "circle_crossing":  # start 4 to 5 m out, walk to the opposite side
-        angle = rng.uniform(-math.pi, math.pi, count)
-        starts = rng.uniform(knobs.inner_radius, knobs.outer_radius, (count, 1)) * np.stack(
-            [np.cos(angle), np.sin(angle)], axis=1
-        )
+    if knobs.layout == "circle_crossing":  # walk to the opposite side
+        starts = _on_ring(knobs, rng, rng.uniform(-math.pi, math.pi, count))
         return starts, -starts
     along = rng.uniform(-knobs.length / 2, knobs.length / 2, count)
     edge = knobs.width / 2 - knobs.radius
@@ -165,6 +160,12 @@ def _candidates(knobs: CrowdKnobs, rng: np.random.Generator, count: int):
     starts = np.where(forward[:, None], np.stack([along, across], 1), np.stack([across, along], 1))
     goals = starts + np.where(forward[:, None], [1e4, 0.0], [0.0, 1e4])
     return starts, goals
+
+
+def _on_ring(knobs: CrowdKnobs, rng: np.random.Generator, angles: np.ndarray) -> np.ndarray:
+    """Circle-crossing starts at these angles, between the inner and outer radius."""
+    distance = rng.uniform(knobs.inner_radius, knobs.outer_radius, (len(angles), 1))
+    return distance * np.stack([np.cos(angles), np.sin(angles)], axis=1)
 
 
 @njit(cache=True)
