@@ -47,10 +47,11 @@ def main() -> None:
 
         def timed(ctx, original=original, method=method):
             nonlocal seconds, scenes
+            # counted before training: after_task may grow what training_windows returns
+            scenes += len(method.training_windows(ctx)) * args.epochs
             start = time.perf_counter()
             original(ctx)
             seconds += time.perf_counter() - start
-            scenes += len(method.training_windows(ctx)) * args.epochs
 
         trainer._train_task = timed
         trainer.run()

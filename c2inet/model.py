@@ -16,7 +16,7 @@ from torch import nn
 
 from c2inet.backbones import BACKBONES
 from c2inet.batch import Batch, scene_mean
-from c2inet.prior import PriorQueue, QueueConfig, gaussian_log_prob
+from c2inet.prior import PriorQueue, QueueConfig, gaussian_log_prob, gaussian_sample
 
 
 @dataclass
@@ -112,12 +112,12 @@ class C2INetModel(Predictor):
 
     def latents(self, context: torch.Tensor, samples: int) -> torch.Tensor:
         mz, lz = self.to_z(context)
-        z = mz + (0.5 * lz).exp() * torch.randn(samples, *mz.shape)
+        z = gaussian_sample(mz, lz, torch.randn(samples, *mz.shape))
         if self.config.c_source == "prior":  # the literal back-door average over P(C)
             c = self.queue.mixture.sample(samples * len(mz)).view(samples, len(mz), -1)
         else:
             mc, lc = self.to_c(context)
-            c = mc + (0.5 * lc).exp() * torch.randn(samples, *mc.shape)
+            c = gaussian_sample(mc, lc, torch.randn(samples, *mc.shape))
         return torch.cat([z, c], dim=-1)
 
     def loss(self, batch: Batch) -> tuple[torch.Tensor, dict[str, float]]:
@@ -125,8 +125,8 @@ class C2INetModel(Predictor):
         context = self.context(batch)
         mz, lz = self.to_z(context)
         mc, lc = self.to_c(context)
-        c = mc + (0.5 * lc).exp() * torch.randn(cfg.n_mc, *mc.shape)  # (S, N, dc)
-        z = mz + (0.5 * lz).exp() * torch.randn(*mz.shape)
+        c = gaussian_sample(mc, lc, torch.randn(cfg.n_mc, *mc.shape))  # (S, N, dc)
+        z = gaussian_sample(mz, lz, torch.randn(*mz.shape))
         nll = self.nll(batch, self.decode(batch, context, torch.cat([z, c[0]], -1)[None]))[0]
         kl_c = (gaussian_log_prob(c, mc, lc) - self.queue.log_prob(c)).mean(0)
         kl_z = 0.5 * (lz.exp() + mz**2 - 1 - lz).sum(-1)

@@ -20,6 +20,11 @@ def gaussian_log_prob(x: torch.Tensor, mean: torch.Tensor, logvar: torch.Tensor)
     return -0.5 * (LOG_2PI + logvar + (x - mean) ** 2 / logvar.exp()).sum(-1)
 
 
+def gaussian_sample(mean: torch.Tensor, logvar: torch.Tensor, noise: torch.Tensor) -> torch.Tensor:
+    """The reparameterised sample mean + std * noise of a diagonal Gaussian."""
+    return mean + (0.5 * logvar).exp() * noise
+
+
 def gaussian_kl(m1, lv1, m2, lv2) -> torch.Tensor:
     """KL(N(m1, e^lv1) || N(m2, e^lv2)) for diagonal Gaussians, summed over the last axis."""
     return 0.5 * (lv2 - lv1 + (lv1.exp() + (m1 - m2) ** 2) / lv2.exp() - 1).sum(-1)
@@ -49,7 +54,7 @@ class GaussianMixture:
     def sample(self, n: int, generator: torch.Generator | None = None) -> torch.Tensor:
         k = torch.multinomial(self.weights, n, replacement=True, generator=generator)
         noise = torch.randn(n, self.means.shape[1], generator=generator)
-        return self.means[k] + (0.5 * self.logvars[k]).exp() * noise
+        return gaussian_sample(self.means[k], self.logvars[k], noise)
 
     def without(self, index: int) -> GaussianMixture:
         """The mixture with component ``index`` removed and the weights renormalised."""
@@ -157,7 +162,7 @@ class PriorQueue:
         optimiser = torch.optim.Adam([mean, logvar], lr=cfg.fit_lr)
         for _ in range(cfg.fit_steps):
             noise = torch.randn(cfg.fit_samples, self.dim, generator=generator)
-            c = mean + (0.5 * logvar).exp() * noise
+            c = gaussian_sample(mean, logvar, noise)
             entropy = 0.5 * (1 + LOG_2PI + logvar).sum()
             log_t, log_m = target.log_prob(c), current.log_prob(c)
             objective = (2 * log_t - torch.logaddexp(log_t, log_m)).mean() + entropy

@@ -9,6 +9,10 @@ import numpy as np
 from c2inet.metrics import METRICS, average_seen, backward_transfer, forgetting
 
 
+def _rounded(values) -> list[float]:
+    return [round(float(v), 6) for v in values]
+
+
 def _clean(array: np.ndarray) -> list:
     """Nested lists with NaN as None, for JSON."""
     return [
@@ -28,11 +32,11 @@ def summarise(
     ade = [r["ade"] for r in runs]
     seen_ade = np.array([average_seen(m) for m in ade])
     seen_fde = np.array([average_seen(r["fde"]) for r in runs])
-    out["avg_seen_ade"] = [round(float(v), 6) for v in seen_ade.mean(0)]
-    out["avg_seen_fde"] = [round(float(v), 6) for v in seen_fde.mean(0)]
-    out["avg_seen_ade_std"] = [round(float(v), 6) for v in seen_ade.std(0)]
+    out["avg_seen_ade"] = _rounded(seen_ade.mean(0))
+    out["avg_seen_fde"] = _rounded(seen_fde.mean(0))
+    out["avg_seen_ade_std"] = _rounded(seen_ade.std(0))
     per_task = np.mean([forgetting(m) for m in ade], 0) if len(ade[0]) > 1 else np.zeros(0)
-    out["forgetting_ade_per_task"] = [round(float(v), 6) for v in per_task]
+    out["forgetting_ade_per_task"] = _rounded(per_task)
     out["forgetting_ade"] = round(float(per_task.mean()), 6) if per_task.size else 0.0
     out["backward_transfer_ade"] = round(float(np.mean([backward_transfer(m) for m in ade])), 6)
     if extras and extras[0] and "queue_size" in extras[0][0]:
@@ -71,7 +75,7 @@ def markdown_table(rows: list[list[str]]) -> str:
 
 
 def markdown_report(
-    scenario: str, tasks: list[str], labels: list[str], k: int, methods: dict[str, dict[str, Any]]
+    scenario: str, labels: list[str], k: int, methods: dict[str, dict[str, Any]]
 ) -> str:
     """The run's report: the Table-2-style summary, then every method's matrices."""
     parts = [

@@ -16,9 +16,14 @@ class _Parser(argparse.ArgumentParser):
         raise InputError(f"{self.prog}: {message}")
 
 
+def plain_parser(prog: str, description: str) -> argparse.ArgumentParser:
+    """An argument parser whose errors are one ``InputError`` line (see :func:`guarded`)."""
+    return _Parser(prog=prog, description=description)
+
+
 def parser(prog: str, description: str) -> argparse.ArgumentParser:
-    """An argument parser with the options every entry point takes."""
-    p = _Parser(prog=prog, description=description)
+    """An argument parser with the options every scenario entry point takes."""
+    p = plain_parser(prog, description)
     p.add_argument("--scenario", required=True, help="curriculum, e.g. crowd_noise_0.1..0.6")
     p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
     p.add_argument(
@@ -31,19 +36,29 @@ def parser(prog: str, description: str) -> argparse.ArgumentParser:
     return p
 
 
+def bounded_int(low: int, high: int) -> Callable[[str], int]:
+    """An argparse ``type``: an integer in [low, high], else a one-line usage error."""
+
+    def convert(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"{value} is not between {low} and {high}")
+        return value
+
+    return convert
+
+
 def add_workers(p: argparse.ArgumentParser) -> None:
     """``--workers``: processes that generate episodes in parallel (same result for any count)."""
     p.add_argument(
         "--workers",
-        type=int,
+        type=bounded_int(1, 256),
         default=os.cpu_count() or 1,
         help="worker processes for episode generation (default: the number of cores)",
     )
-
-
-def check_workers(workers: int) -> None:
-    if not 1 <= workers <= 256:
-        raise InputError(f"--workers {workers}: must be between 1 and 256")
 
 
 def guarded(main: Callable[[list[str] | None], int]) -> Callable[[list[str] | None], int]:

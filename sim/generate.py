@@ -12,7 +12,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from sim.cli import add_workers, check_workers, guarded, parser
+from sim.cli import add_workers, guarded, parser
 from sim.data import SPLITS, Domain
 from sim.domains import build_domain
 from sim.io import write_ethucy, write_npz, write_parquet, write_text_atomic
@@ -66,7 +66,6 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--format", choices=sorted(WRITERS), default="parquet")
     add_workers(p)
     args = p.parse_args(argv)
-    check_workers(args.workers)
     curriculum = parse_scenario(args.scenario, args.scenarios_dir)
     domains = []
     for spec in tqdm(curriculum, desc="domains", unit="domain", file=sys.stderr):

@@ -27,8 +27,8 @@ from c2inet.metrics import METRICS
 from c2inet.model import ModelConfig
 from c2inet.report import markdown_report, matrix_csv, summarise, text_table
 from c2inet.trainer import ContinualTrainer, Task, TrainConfig
-from sim.cli import add_workers, check_workers, guarded, parser
-from sim.data import cut_windows, window_members
+from sim.cli import add_workers, bounded_int, guarded, parser
+from sim.data import SPLITS, cut_windows, window_members
 from sim.domains import build_domain, rollout_scene
 from sim.errors import InputError
 from sim.families import Splits
@@ -61,7 +61,7 @@ def make_tasks(
         quick_splits = Splits(*get_generator(spec.family.generator).quick_splits) if quick else None
         domain = build_domain(spec, seed, cache, quick_splits, workers)
         splits = {}
-        for split in ("train", "val", "test"):
+        for split in SPLITS:
             windows = domain.windows(split)
             if windows is not None and quick and len(windows) > QUICK_WINDOWS:
                 windows = windows.subset(np.arange(QUICK_WINDOWS))
@@ -121,6 +121,19 @@ def parse_settings(items: list[str], methods: list[str]) -> dict[str, dict[str, 
     return settings
 
 
+def window_counts(task: Task) -> dict[str, int]:
+    """Windows per split of a task (0 for a missing split)."""
+    return {s: 0 if getattr(task, s) is None else len(getattr(task, s)) for s in SPLITS}
+
+
+def write_figures(folder: Path, results: dict[str, dict], labels: list[str]) -> None:
+    """The paper's figures of every method: error matrix, per-task ADE, averages over seen tasks."""
+    for name, result in results.items():
+        figures.error_matrix(name, result["ade"], labels, folder / f"matrix_{name}.png")
+        figures.per_task(name, result["ade"], labels, folder / f"per_task_{name}.png")
+    figures.average_seen(results, labels, folder / "average_seen.png")
+
+
 def versions() -> dict[str, str]:
     out = {"python": platform.python_version()}
     for package in ("torch", "numpy", "pymunk", "rerun-sdk", "highway-env", "c2i-testbed"):
@@ -152,12 +165,23 @@ def main(argv: list[str] | None = None) -> int:
         "--methods", default=DEFAULT_METHODS, help=f"comma-separated (default {DEFAULT_METHODS})"
     )
     p.add_argument("--backbone", choices=sorted(BACKBONES), default="stgat")
-    p.add_argument("--epochs", type=int, default=None, help="epochs per task (default 20, quick 2)")
     p.add_argument(
-        "--seeds", type=int, default=1, help="seeds per method; cells become mean and std"
+        "--epochs",
+        type=bounded_int(0, 10_000),
+        default=None,
+        help="epochs per task (default 20, quick 2)",
     )
     p.add_argument(
-        "--k", type=int, default=None, help="samples for best-of-K (default 20, quick 5)"
+        "--seeds",
+        type=bounded_int(1, 100),
+        default=1,
+        help="seeds per method; cells become mean and std",
+    )
+    p.add_argument(
+        "--k",
+        type=bounded_int(1, 1000),
+        default=None,
+        help="samples for best-of-K (default 20, quick 5)",
     )
     p.add_argument("--out", type=Path, default=None, help="output folder (default runs/<scenario>)")
     p.add_argument("--cache", type=Path, default=Path(".cache/domains"), help="domain cache folder")
@@ -185,13 +209,8 @@ def main(argv: list[str] | None = None) -> int:
         and args.rerun.partition("=")[0] != "connect"
     ):
         raise InputError(f"--rerun {args.rerun!r}: expected spawn, connect or connect=URL")
-    if args.seeds < 1 or args.seeds > 100:
-        raise InputError(f"--seeds {args.seeds}: must be between 1 and 100")
     epochs = args.epochs if args.epochs is not None else (2 if args.quick else 20)
     k = args.k if args.k is not None else (5 if args.quick else 20)
-    if not 0 <= epochs <= 10_000 or not 1 <= k <= 1000:
-        raise InputError("--epochs must be in [0, 10000] and --k in [1, 1000]")
-    check_workers(args.workers)
     methods = parse_methods(args.methods)
     curriculum = parse_scenario(args.scenario, args.scenarios_dir)
     settings = parse_settings(args.set, methods)
@@ -225,7 +244,6 @@ def main(argv: list[str] | None = None) -> int:
             recorder.log_domain(domain.name, domain.knobs, domain.stats)
         log_truth(recorder, showcases, rollouts)
 
-    results: dict[str, dict] = {}
     jobs = [(m, s) for m in methods for s in range(args.seeds)]
     runs: dict[str, list] = {m: [] for m in methods}
     drawn: dict[str, dict] = {}
@@ -246,6 +264,7 @@ def main(argv: list[str] | None = None) -> int:
                 progress=lambda it, **kw: tqdm(it, file=sys.stderr, unit="epoch", **kw),
             )
             runs[name].append(trainer.run())
+    results: dict[str, dict] = {}
     for name in methods:
         results[name] = summarise(
             [r.matrices for r in runs[name]], [r.summaries for r in runs[name]]
@@ -281,21 +300,12 @@ def main(argv: list[str] | None = None) -> int:
         "settings": settings,
         "versions": versions(),
         "domains": [domain_summary(d) for d in domains],
-        "windows": {
-            t.name: {
-                s: 0 if getattr(t, s) is None else len(getattr(t, s))
-                for s in ("train", "val", "test")
-            }
-            for t in tasks
-        },
+        "windows": {t.name: window_counts(t) for t in tasks},
     }
     write_text_atomic(out / "run_card.json", json.dumps(run_card, indent=1) + "\n")
-    report = markdown_report(args.scenario, task_names, labels, k, results)
+    report = markdown_report(args.scenario, labels, k, results)
     write_text_atomic(out / "report.md", report)
-    for name, result in results.items():
-        figures.error_matrix(name, result["ade"], labels, out / "figures" / f"matrix_{name}.png")
-        figures.per_task(name, result["ade"], labels, out / "figures" / f"per_task_{name}.png")
-    figures.average_seen(results, labels, out / "figures" / "average_seen.png")
+    write_figures(out / "figures", results, labels)
     if recorder is not None:
         samples = {show.task: show.scenes for show in showcases}
         figures.prediction_grid(samples, drawn, out / "figures" / "predictions.png")

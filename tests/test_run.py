@@ -119,6 +119,8 @@ def test_seeds_give_mean_and_std(tmp_path):
         (["--scenario", "crowd_noise_0.1", "--set", "pruning"], "SCOPE.KEY=VALUE"),
         (["--scenario", "crowd_noise_0.1", "--set", "ewc.strength=1"], "not model, train"),
         (["--scenario", "crowd_noise_0.1", "--workers", "0"], "--workers"),
+        (["--scenario", "crowd_noise_0.1", "--seeds", "0"], "--seeds: 0 is not between 1"),
+        (["--scenario", "crowd_noise_0.1", "--k", "many"], "--k: 'many' is not an integer"),
     ],
 )
 def test_bad_options_give_one_error_line(args, message):

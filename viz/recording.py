@@ -67,6 +67,12 @@ def _strips(paths: np.ndarray) -> list[np.ndarray]:
     return list(paths.reshape(-1, *paths.shape[-2:]))
 
 
+def _from_last_observed(last_obs: np.ndarray, pred: np.ndarray) -> np.ndarray:
+    """Predictions (K, agents, T, 2) prefixed with each agent's last observed position."""
+    start = np.broadcast_to(last_obs[None, :, None], (*pred.shape[:2], 1, 2))
+    return np.concatenate([start, pred], axis=2)
+
+
 class RunRecorder:
     """Writes a run to one recording stream (a file, a live viewer, or both)."""
 
@@ -166,8 +172,7 @@ class RunRecorder:
         """
         base = f"tasks/{task}/scenes/{index}/{method}"
         self._time(task=trained_through, frame=obs_len - 1)
-        start = np.broadcast_to(last_obs[None, :, None], (*pred.shape[:2], 1, 2))
-        paths = np.concatenate([start, pred], axis=2)
+        paths = _from_last_observed(last_obs, pred)
         self.rec.log(f"{base}/predictions", rr.LineStrips2D(_strips(paths), colors=(*RED, 90)))
         chosen = paths[best, np.arange(paths.shape[1])]
         self.rec.log(f"{base}/best", rr.LineStrips2D(_strips(chosen), colors=ORANGE, radii=0.03))
@@ -201,8 +206,7 @@ class RunRecorder:
         frames: (W,) the rollout frame of each window's last observation; pred: (K, A, T, 2)
         for all windows' agents concatenated; window_agents: (W,) agents per window.
         """
-        starts = np.broadcast_to(last_obs[None, :, None], (pred.shape[0], pred.shape[1], 1, 2))
-        paths = np.concatenate([starts, pred], axis=2).transpose(1, 0, 2, 3)  # (A, K, T+1, 2)
+        paths = _from_last_observed(last_obs, pred).transpose(1, 0, 2, 3)  # (A, K, T+1, 2)
         strips_per_window = window_agents * pred.shape[0]
         self.rec.send_columns(
             f"rollouts/{task}/{method}/predictions",

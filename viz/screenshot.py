@@ -7,7 +7,6 @@ viewer renders, and for the README's picture.
 
 from __future__ import annotations
 
-import argparse
 import os
 import shutil
 import subprocess
@@ -18,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from sim.cli import guarded, plain_parser
+from sim.errors import InputError
 from viz.serve import command, free_port, launch, stop, wait_for_port
 
 MIN_COLOURS = 500  # a blank page has under 10, the loading screen a few dozen
@@ -88,11 +89,14 @@ def screenshot(
     return out
 
 
+@guarded
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="viz.screenshot", description=__doc__.splitlines()[0])
+    p = plain_parser("viz.screenshot", __doc__.splitlines()[0])
     p.add_argument("recording", type=Path)
     p.add_argument("out", type=Path)
     args = p.parse_args(argv)
+    if not args.recording.is_file():
+        raise InputError(f"{args.recording}: no such recording")
     try:
         print(screenshot(args.recording, args.out))
     except (RuntimeError, subprocess.SubprocessError) as error:

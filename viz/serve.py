@@ -6,7 +6,6 @@ Starts the ``rerun`` command of the installed rerun-sdk bound to the loopback ad
 
 from __future__ import annotations
 
-import argparse
 import os
 import shutil
 import signal
@@ -16,6 +15,9 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+from sim.cli import bounded_int, guarded, plain_parser
+from sim.errors import InputError
 
 
 def free_port() -> int:
@@ -78,15 +80,15 @@ def _interrupt(*_) -> None:
     raise KeyboardInterrupt
 
 
+@guarded
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="viz.serve", description=__doc__.splitlines()[0])
+    p = plain_parser("viz.serve", __doc__.splitlines()[0])
     p.add_argument("recording", type=Path)
-    p.add_argument("--web-port", type=int, default=9090)
-    p.add_argument("--grpc-port", type=int, default=9876)
+    p.add_argument("--web-port", type=bounded_int(1, 65535), default=9090)
+    p.add_argument("--grpc-port", type=bounded_int(1, 65535), default=9876)
     args = p.parse_args(argv)
     if not args.recording.is_file():
-        print(f"error: {args.recording}: no such recording", file=sys.stderr)
-        return 2
+        raise InputError(f"{args.recording}: no such recording")
     env = dict(os.environ)
     env.setdefault(
         "XDG_CONFIG_HOME", tempfile.mkdtemp(prefix="rerun-config-")

@@ -39,10 +39,9 @@ class C2INetOnline(Method):
 
     def __init__(self, model_config, options: dict[str, Any] | None = None):
         super().__init__(model_config, options)
-        self.interval, self.samples = self.options.interval, self.options.samples
-        fields = QueueConfig.__dataclass_fields__
+        queue_fields = QueueConfig.__dataclass_fields__
         self.queue_config = QueueConfig(
-            **{k: v for k, v in asdict(self.options).items() if k in fields}
+            **{k: v for k, v in asdict(self.options).items() if k in queue_fields}
         )
         self.old: GaussianMixture | None = None
         self.sample_scenes = None
@@ -55,7 +54,7 @@ class C2INetOnline(Method):
         """Means and log-variances of Q(C|X) for the S samples under the current encoder."""
         with torch.no_grad():
             mean, logvar = ctx.model.posterior_c(make_batch(ctx.train, self.sample_scenes))
-        return mean[: self.samples], logvar[: self.samples]
+        return mean[: self.options.samples], logvar[: self.options.samples]
 
     def _target(
         self, ctx: TaskContext, mean: torch.Tensor, logvar: torch.Tensor
@@ -69,7 +68,7 @@ class C2INetOnline(Method):
 
     def before_task(self, ctx: TaskContext) -> None:
         agents_per_scene = max(1.0, ctx.train.agents_per_scene.mean())
-        scenes = min(len(ctx.train), int(self.samples / agents_per_scene) + 1)
+        scenes = min(len(ctx.train), int(self.options.samples / agents_per_scene) + 1)
         self.sample_scenes = ctx.rng.choice(len(ctx.train), scenes, replace=False)
         queue = ctx.model.queue
         self.old = queue.mixture.detached()
@@ -84,7 +83,7 @@ class C2INetOnline(Method):
             queue.add(mean, logvar, 1 / t)
 
     def after_epoch(self, ctx: TaskContext, epoch: int) -> None:
-        if (epoch + 1) % self.interval:
+        if (epoch + 1) % self.options.interval:
             return
         queue = ctx.model.queue
         target = self._target(ctx, *self._current_posterior(ctx))

@@ -25,14 +25,13 @@ class Coresets(Method):
 
     def __init__(self, model_config, options: dict[str, Any] | None = None):
         super().__init__(model_config, options)
-        self.per_task = self.options.per_task
         self.buffer: list[Windows] = []
 
     def training_windows(self, ctx: TaskContext) -> Windows:
         return Windows.concat([ctx.train, *self.buffer])
 
     def after_task(self, ctx: TaskContext) -> None:
-        count = min(self.per_task, len(ctx.train))
+        count = min(self.options.per_task, len(ctx.train))
         self.buffer.append(ctx.train.subset(ctx.rng.choice(len(ctx.train), count, replace=False)))
 
     def summary(self) -> dict[str, Any]:

@@ -19,6 +19,7 @@ from c2inet.methods.base import Method, TaskContext
 class EWCOptions:
     strength: float = 100.0  # lambda
     gamma: float = 1.0  # decay of the running Fisher (1: plain sum over tasks)
+    fisher_batch_scenes: int = 16  # scenes per batch of the Fisher estimate
 
 
 class EWC(Method):
@@ -29,7 +30,6 @@ class EWC(Method):
 
     def __init__(self, model_config, options: dict[str, Any] | None = None):
         super().__init__(model_config, options)
-        self.strength, self.gamma = self.options.strength, self.options.gamma
         self.fisher: dict[str, torch.Tensor] = {}
         self.anchor: dict[str, torch.Tensor] = {}
 
@@ -38,7 +38,7 @@ class EWC(Method):
         for name, p in model.named_parameters():
             if name in self.fisher:
                 total = total + (self.fisher[name] * (p - self.anchor[name]) ** 2).sum()
-        return 0.5 * self.strength * total
+        return 0.5 * self.options.strength * total
 
     def extra_loss(self, model: torch.nn.Module) -> torch.Tensor | None:
         return self.penalty(model) if self.fisher else None
@@ -47,7 +47,7 @@ class EWC(Method):
         model = ctx.model
         fisher = {n: torch.zeros_like(p) for n, p in model.named_parameters()}
         count = 0
-        for batch in batches(ctx.train, 16, ctx.rng):
+        for batch in batches(ctx.train, self.options.fisher_batch_scenes, ctx.rng):
             model.zero_grad()
             loss, _ = model.loss(batch)
             loss.backward()
@@ -58,7 +58,7 @@ class EWC(Method):
         model.zero_grad()
         for n in fisher:
             fisher[n] /= max(count, 1)
-            self.fisher[n] = self.gamma * self.fisher.get(n, 0) + fisher[n]
+            self.fisher[n] = self.options.gamma * self.fisher.get(n, 0) + fisher[n]
         self.anchor = {n: p.detach().clone() for n, p in model.named_parameters()}
 
     def state_dict(self, model: torch.nn.Module) -> dict[str, Any]:

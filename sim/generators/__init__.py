@@ -53,7 +53,10 @@ class Generator:
         knobs: dict[str, Any],
         splits: Any,
         seed: np.random.SeedSequence,
+        workers: int = 1,
     ) -> Domain:
+        """The domain's scenes per split, with its realised statistics; ``workers`` processes may
+        share the work, and the result must not depend on how many."""
         raise NotImplementedError
 
 

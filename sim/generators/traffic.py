@@ -22,14 +22,13 @@ from typing import Any
 
 import numpy as np
 
-from sim.data import SPLITS, Domain, Scene
+from sim.data import OBS_LEN, PRED_LEN, SPLITS, Domain, Scene, window_members
 from sim.errors import InputError
 from sim.generators import Generator, child_seed
 from sim.options import check_range
 from sim.stats import motion_stats, proximity_stats
 
 ENVS = {"highway": "highway-v0", "merge": "merge-generic-v1", "roundabout": "roundabout-generic-v1"}
-OBS, PRED = 8, 12
 
 
 @dataclass(frozen=True)
@@ -57,7 +56,7 @@ class TrafficKnobs:
         check_range("vehicles_density", self.vehicles_density, 0, 5, open_low=True)
         check_range("obs_noise", self.obs_noise, 0, 5)
         check_range("idm_spread", self.idm_spread, 0, 0.5)
-        check_range("seconds", self.seconds, (OBS + PRED) * self.dt, 3600)
+        check_range("seconds", self.seconds, (OBS_LEN + PRED_LEN) * self.dt, 3600)
         check_range("warmup", self.warmup, 0, 60)
         check_range("dt", self.dt, 0, 2, open_low=True)
         check_range("sim_hz", self.sim_hz, 1, 100)
@@ -178,19 +177,16 @@ def simulate_episode(knobs: TrafficKnobs, seed: np.random.SeedSequence) -> Episo
 
 def local_scenes(episode: Episode, knobs: TrafficKnobs) -> list[Scene]:
     """20-frame scenes every ``stride`` frames: vehicles present throughout, near the centre one."""
-    length = OBS + PRED
-    present = ~np.isnan(episode.positions[..., 0])
+    whole = Scene(episode.positions, np.arange(episode.positions.shape[1], dtype=np.int64))
     scenes = []
-    for start in range(0, episode.positions.shape[0] - length + 1, knobs.stride):
-        full = np.nonzero(present[start : start + length].all(0))[0]
-        if len(full) == 0:
-            continue
-        last = episode.positions[start + OBS - 1, full]
+    starts, members = window_members(whole, OBS_LEN + PRED_LEN, knobs.stride)
+    for start, present in zip(starts, members, strict=True):
+        full = np.nonzero(present)[0]
+        last = episode.positions[start + OBS_LEN - 1, full]
         centre = last[np.argmin(np.linalg.norm(last - np.median(last, 0), axis=1))]
         keep = full[np.linalg.norm(last - centre, axis=1) <= knobs.radius]
-        scenes.append(
-            Scene(episode.positions[start : start + length, keep].copy(), keep.astype(np.int64))
-        )
+        window = episode.positions[start : start + OBS_LEN + PRED_LEN, keep]
+        scenes.append(Scene(window.copy(), keep.astype(np.int64)))
     return scenes
 
 
