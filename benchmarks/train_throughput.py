@@ -7,7 +7,9 @@ C2INet's target is at most 1.5x. Each method's figure is the best of ``--repeats
 methods interleaved within each round.
 
     python benchmarks/train_throughput.py [--scenario crowd_noise_0.1,0.2] [--epochs 10]
-        [--repeats 3]
+        [--repeats 3] [--threads 1]
+
+Run it on 2-agent scenes too (``--scenario crowd_radius_0.1,0.2``), where fixed costs weigh more.
 """
 
 from __future__ import annotations
@@ -50,7 +52,9 @@ def main() -> None:
     p.add_argument("--epochs", type=int, default=10)
     p.add_argument("--methods", default="finetune,c2inet-online,ewc,coresets,joint")
     p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--threads", type=int, default=1, help="torch intra-op threads (default 1)")
     args = p.parse_args()
+    torch.set_num_threads(args.threads)
     tasks = []
     for spec in parse_scenario(args.scenario):
         d = build_domain(spec, 0)

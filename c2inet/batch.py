@@ -42,11 +42,20 @@ class Batch:
         step = self.obs_rel[1:].norm(dim=-1).mean(0)  # (N,)
         return self.per_scene_mean(step).clamp_min(MIN_SCALE)[self.scene_of, None]
 
+    @property
+    def agent_counts(self) -> torch.Tensor:
+        return self.scene_start[1:] - self.scene_start[:-1]
+
     def per_scene_mean(self, per_agent: torch.Tensor) -> torch.Tensor:
-        """(N,) per agent -> (B,) mean over the agents of each scene."""
-        sums = torch.zeros(self.num_scenes, dtype=per_agent.dtype)
-        sums = sums.index_add(0, self.scene_of, per_agent)
-        return sums / (self.scene_start[1:] - self.scene_start[:-1]).to(per_agent.dtype)
+        """(..., N) per agent -> (..., B) mean over the agents of each scene."""
+        sums = per_agent.new_zeros((*per_agent.shape[:-1], self.num_scenes))
+        sums = sums.index_add(-1, self.scene_of, per_agent)
+        return sums / self.agent_counts.to(per_agent.dtype)
+
+    def pool(self, features: torch.Tensor) -> torch.Tensor:
+        """(N, F) per agent -> (B, F) mean over the agents of each scene."""
+        sums = features.new_zeros((self.num_scenes, features.shape[-1]))
+        return sums.index_add(0, self.scene_of, features) / self.agent_counts[:, None]
 
     @property
     def fut_rel(self) -> torch.Tensor:
@@ -96,3 +105,12 @@ def batches(
 def scene_mean(per_agent: torch.Tensor, batch: Batch) -> torch.Tensor:
     """Mean over scenes of the per-scene mean over agents (GCRL's erm_loss, scaled by 1/B)."""
     return batch.per_scene_mean(per_agent).mean()
+
+
+def variety_loss(per_agent: torch.Tensor, batch: Batch) -> torch.Tensor:
+    """The variety loss (GCRL's ``best_k``): per scene, the best of S samples; (S, N) -> ().
+
+    The sample whose mean over the scene's agents is smallest counts, the same one for every
+    agent of the scene (the joint minimum of the metrics). With S = 1 it is :func:`scene_mean`.
+    """
+    return batch.per_scene_mean(per_agent).min(0).values.mean()

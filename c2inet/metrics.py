@@ -15,7 +15,7 @@ def displacement_errors(pred: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray
     return distance.mean(axis=1), distance[:, -1]
 
 
-METRICS = ("ade", "fde", "ade_agent", "fde_agent", "ade_k1", "fde_k1")
+METRICS = ("ade", "fde", "ade_agent", "fde_agent", "ade_k1", "fde_k1", "endpoint_spread")
 
 
 def best_sample(errors: np.ndarray, scene_start: np.ndarray, mode: str) -> np.ndarray:
@@ -44,8 +44,11 @@ def best_of_k(errors: np.ndarray, scene_start: np.ndarray, mode: str) -> np.ndar
 def evaluate_predictions(
     pred: np.ndarray, truth: np.ndarray, scene_start: np.ndarray
 ) -> dict[str, float]:
-    """ADE/FDE at K = 1 (the first sample) and best-of-K, joint and per agent, in metres."""
+    """ADE/FDE at K = 1 (the first sample) and best-of-K, joint and per agent, in metres, and
+    the spread of the K endpoints (mean distance of each agent's K final points to their mean)."""
     ade, fde = displacement_errors(pred, truth)
+    final = pred[:, -1]  # (K, N, 2)
+    spread = np.linalg.norm(final - final.mean(axis=0), axis=-1).mean()
     return {
         "ade": float(best_of_k(ade, scene_start, "joint").mean()),
         "fde": float(best_of_k(fde, scene_start, "joint").mean()),
@@ -53,6 +56,7 @@ def evaluate_predictions(
         "fde_agent": float(best_of_k(fde, scene_start, "agent").mean()),
         "ade_k1": float(ade[0].mean()),
         "fde_k1": float(fde[0].mean()),
+        "endpoint_spread": float(spread),
     }
 
 
@@ -61,10 +65,19 @@ def average_seen(matrix: np.ndarray) -> np.ndarray:
     return np.array([np.mean(matrix[i, : i + 1]) for i in range(len(matrix))])
 
 
-def forgetting(matrix: np.ndarray) -> np.ndarray:
+def forgetting_worst(matrix: np.ndarray) -> np.ndarray:
     """Per task j but the last: worst error after leaving it minus the error right after it."""
     t = len(matrix)
     return np.array([matrix[j + 1 :, j].max() - matrix[j, j] for j in range(t - 1)])
+
+
+def forgetting_final(matrix: np.ndarray) -> np.ndarray:
+    """Per task j but the last: final error minus the best error before the last task.
+
+    Chaudhry et al. 2018 (best earlier accuracy minus final), written for errors.
+    """
+    t = len(matrix)
+    return np.array([matrix[-1, j] - matrix[j:-1, j].min() for j in range(t - 1)])
 
 
 def backward_transfer(matrix: np.ndarray) -> float:

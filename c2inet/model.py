@@ -1,22 +1,27 @@
-"""Trajectory predictors: a backbone whose decoder is conditioned on a latent sample.
+"""Trajectory predictors: a backbone whose decoder is conditioned on a vector with a random part.
 
-The plain predictor draws that latent from N(0, I) (the baselines); :class:`C2INetModel` infers a
-trajectory latent Z and a confounder C with Gaussian heads and scores C against the prior queue.
-Displacements are divided by each scene's own motion scale (``Batch.scale``, from observed frames
-only) and predictions multiplied back, so pedestrians and vehicles alike reach the network at
-unit size, in one curriculum too.
+The plain predictor conditions its decoder on the encoder's context and noise drawn from
+N(0, I) (the baselines). :class:`C2INetModel` conditions it on two latents alone: Z per agent
+(invariant) and the confounder C per scene (variant), so all it knows of the past passes through
+them (the bottleneck of GCRL); C is scored against the prior queue. Displacements are divided by
+each scene's own motion scale (``Batch.scale``, from observed frames only) and predictions
+multiplied back, so pedestrians and vehicles alike reach the network at unit size.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
 import torch
 from torch import nn
 
 from c2inet.backbones import BACKBONES
-from c2inet.batch import Batch, scene_mean
-from c2inet.prior import PriorQueue, QueueConfig, gaussian_log_prob, gaussian_sample
+from c2inet.batch import Batch, make_batch, variety_loss
+from c2inet.data import OBS_LEN, Windows
+from c2inet.prior import GaussianMixture, PriorQueue, QueueConfig, gaussian_log_prob, symmetric_kl
+
+C_SOURCES = ("prior", "posterior", "posterior_mean")
 
 
 @dataclass
@@ -30,8 +35,10 @@ class ModelConfig:
     likelihood_std: float = 0.1  # std of the Gaussian likelihood, in units of the scene scale
     beta_c: float = 1.0
     beta_z: float = 1.0
-    n_mc: int = 10  # Monte Carlo samples of C for the KL to the mixture
-    c_source: str = "posterior"  # where test-time C comes from: posterior | prior
+    beta_x: float = 1.0  # weight of the past reconstruction log p(X | z, c)
+    n_mc: int = 10  # Monte Carlo samples for the KL to the mixture and the past likelihood
+    c_source: str = "prior"  # test-time C: prior (the back-door average, Eq 16) | posterior
+    c_per: str = "agent"  # one C per agent (GCRL, method notes 7.8) or per scene
     residual: bool = True  # decoder steps change the last displacement (constant-velocity prior)
 
     def __post_init__(self):
@@ -39,47 +46,59 @@ class ModelConfig:
             raise ValueError(
                 f"backbone {self.backbone!r} is unknown (known: {', '.join(BACKBONES)})"
             )
-        if self.c_source not in ("posterior", "prior"):
-            raise ValueError(f"c_source {self.c_source!r}: expected posterior or prior")
+        if self.c_source not in ("prior", "posterior"):
+            raise ValueError(f"c_source {self.c_source!r}: expected prior or posterior")
+        if self.c_per not in ("agent", "scene"):
+            raise ValueError(f"c_per {self.c_per!r}: expected agent or scene")
+
+
+def _positions(batch: Batch, rel: torch.Tensor) -> torch.Tensor:
+    """Normalised displacements (12, S, N, 2) -> absolute positions in metres (S, 12, N, 2)."""
+    return (batch.obs[-1] + (rel * batch.scale).cumsum(0)).transpose(0, 1)
 
 
 class Predictor(nn.Module):
-    """A backbone predicting future displacements from a latent drawn from N(0, I)."""
+    """A backbone predicting future displacements from its context and N(0, I) noise."""
 
-    def __init__(self, config: ModelConfig, latent_dim: int | None = None):
+    def __init__(self, config: ModelConfig, cond_dim: int | None = None):
         super().__init__()
         self.config = config
-        self.latent_dim = latent_dim or config.latent_dim
-        self.backbone = BACKBONES[config.backbone](self.latent_dim, residual=config.residual)
+        backbone = BACKBONES[config.backbone]
+        if cond_dim is None:
+            cond_dim = backbone.context_dim + config.latent_dim
+        self.backbone = backbone(cond_dim, residual=config.residual)
 
     def context(self, batch: Batch) -> torch.Tensor:
         return self.backbone.encode(batch.obs_rel / batch.scale, batch)
 
-    def latents(self, context: torch.Tensor, samples: int) -> torch.Tensor:
-        return torch.randn(samples, context.shape[0], self.latent_dim)
+    def decode(self, batch: Batch, cond: torch.Tensor) -> torch.Tensor:
+        """Normalised future displacements (12, S, N, 2) from conditions (S, N, D)."""
+        return self.backbone.decode(cond, batch.obs_rel[-1] / batch.scale)
 
-    def decode(self, batch: Batch, context: torch.Tensor, latent: torch.Tensor) -> torch.Tensor:
-        """Normalised future displacements (12, S, N, 2)."""
-        ctx = context.expand(latent.shape[0], *context.shape)
-        return self.backbone.decode(ctx, latent, batch.obs_rel[-1] / batch.scale)
+    def _conditions(self, context: torch.Tensor, samples: int) -> torch.Tensor:
+        noise = torch.randn(samples, context.shape[0], self.config.latent_dim)
+        return torch.cat([context.expand(samples, *context.shape), noise], -1)
 
     def nll(self, batch: Batch, pred_rel: torch.Tensor) -> torch.Tensor:
         """Gaussian negative log-likelihood of the future displacements per agent (S, N)."""
         error = pred_rel - (batch.fut_rel / batch.scale)[:, None]
         return (error**2).sum(dim=(0, 3)) / (2 * self.config.likelihood_std**2)
 
-    def loss(self, batch: Batch) -> tuple[torch.Tensor, dict[str, float]]:
-        context = self.context(batch)
-        nll = self.nll(batch, self.decode(batch, context, self.latents(context, 1)))[0]
-        loss = scene_mean(nll, batch)
+    def loss(self, batch: Batch, k_train: int = 1) -> tuple[torch.Tensor, dict[str, float]]:
+        """The training loss; with ``k_train`` > 1 the variety loss over that many samples."""
+        cond = self._conditions(self.context(batch), k_train)
+        loss = variety_loss(self.nll(batch, self.decode(batch, cond)), batch)
         return loss, {"nll": loss.item()}
 
     @torch.no_grad()
     def predict(self, batch: Batch, samples: int) -> torch.Tensor:
         """K sampled futures as absolute positions in metres, (K, 12, N, 2)."""
-        context = self.context(batch)
-        rel = self.decode(batch, context, self.latents(context, samples)) * batch.scale
-        return (batch.obs[-1] + rel.cumsum(0)).transpose(0, 1)
+        cond = self._conditions(self.context(batch), samples)
+        return _positions(batch, self.decode(batch, cond))
+
+    def evaluation_variants(self) -> dict[str, dict]:
+        """Other ways to predict that the trainer also scores, by metric suffix."""
+        return {}
 
 
 class GaussianHead(nn.Module):
@@ -98,44 +117,204 @@ class GaussianHead(nn.Module):
         return self.mean(h), self.logvar(h).clamp(-8, 4)
 
 
+@dataclass
+class Posteriors:
+    """Q(Z|X) per agent (N, dz) and Q(C|X) per agent (N, dc) or per scene (B, dc)."""
+
+    z_mean: torch.Tensor
+    z_logvar: torch.Tensor
+    c_mean: torch.Tensor
+    c_logvar: torch.Tensor
+
+
+@dataclass
+class Anchors:
+    """What the network did at samples of old prior components, to hold it there (BooVAE).
+
+    Latents [z, c] with z ~ N(0, I) and c from a task's components, the pseudo-input the past
+    decoder made of them (single-agent scenes), and what the decoder and Q(C|X) gave then.
+    """
+
+    cond: torch.Tensor  # (A, dz + dc)
+    last_rel: torch.Tensor  # (A, 2) the pseudo-input's last displacement (normalised)
+    future: torch.Tensor  # (12, A, 2) the decoder's output when stored
+    inputs: Windows  # the pseudo-inputs (observed frames; the future is unused)
+    c_mean: torch.Tensor  # (A, dc) Q(C|X) at the pseudo-inputs when stored
+    c_logvar: torch.Tensor
+
+    def __len__(self) -> int:
+        return len(self.cond)
+
+    def select(self, index: torch.Tensor) -> Anchors:
+        return Anchors(
+            self.cond[index],
+            self.last_rel[index],
+            self.future[:, index],
+            self.inputs.subset(index.numpy()),
+            self.c_mean[index],
+            self.c_logvar[index],
+        )
+
+    @staticmethod
+    def concat(parts: list[Anchors]) -> Anchors:
+        return Anchors(
+            torch.cat([p.cond for p in parts]),
+            torch.cat([p.last_rel for p in parts]),
+            torch.cat([p.future for p in parts], dim=1),
+            Windows.concat([p.inputs for p in parts]),
+            torch.cat([p.c_mean for p in parts]),
+            torch.cat([p.c_logvar for p in parts]),
+        )
+
+
 class C2INetModel(Predictor):
-    """C2INet: posteriors Q(Z|X) and Q(C|X) on the backbone, C scored against the prior queue."""
+    """C2INet: latents Z and C, the decoder conditioned on [z, c] alone.
+
+    Separate trunks read the backbone's context: Q(Z|X) from each agent's, Q(C|X) from each
+    agent's too, or from the scene's mean context with ``c_per="scene"`` (one confounder shared
+    by a scene's agents). A past decoder reconstructs the observed displacements from [z, c]
+    (GCRL's E1), and C is scored against the prior queue's training prior (its KL, Eq 10).
+    """
 
     def __init__(self, config: ModelConfig, queue: QueueConfig | None = None):
-        super().__init__(config, latent_dim=config.z_dim + config.c_dim)
-        self.to_z = GaussianHead(self.backbone.out_dim, config.z_dim)
-        self.to_c = GaussianHead(self.backbone.out_dim, config.c_dim)
+        super().__init__(config, cond_dim=config.z_dim + config.c_dim)
+        width = self.backbone.context_dim
+        self.to_z = GaussianHead(width, config.z_dim)
+        self.to_c = GaussianHead(width, config.c_dim)
+        self.past = nn.Sequential(
+            nn.Linear(config.z_dim + config.c_dim, 64), nn.Tanh(), nn.Linear(64, 2 * (OBS_LEN - 1))
+        )
         self.queue = PriorQueue(config.c_dim, queue)
+        self.anchors: Anchors | None = None  # stored after each task by the method
 
-    def posterior_c(self, batch: Batch) -> tuple[torch.Tensor, torch.Tensor]:
-        return self.to_c(self.context(batch))
+    @property
+    def c_per_scene(self) -> bool:
+        return self.config.c_per == "scene"
 
-    def latents(self, context: torch.Tensor, samples: int) -> torch.Tensor:
-        mz, lz = self.to_z(context)
-        z = gaussian_sample(mz, lz, torch.randn(samples, *mz.shape))
-        if self.config.c_source == "prior":  # the literal back-door average over P(C)
-            c = self.queue.mixture.sample(samples * len(mz)).view(samples, len(mz), -1)
-        else:
-            mc, lc = self.to_c(context)
-            c = gaussian_sample(mc, lc, torch.randn(samples, *mc.shape))
-        return torch.cat([z, c], dim=-1)
-
-    def loss(self, batch: Batch) -> tuple[torch.Tensor, dict[str, float]]:
-        cfg = self.config
+    def posteriors(self, batch: Batch) -> Posteriors:
         context = self.context(batch)
-        mz, lz = self.to_z(context)
-        mc, lc = self.to_c(context)
-        c = gaussian_sample(mc, lc, torch.randn(cfg.n_mc, *mc.shape))  # (S, N, dc)
-        z = gaussian_sample(mz, lz, torch.randn(*mz.shape))
-        nll = self.nll(batch, self.decode(batch, context, torch.cat([z, c[0]], -1)[None]))[0]
-        kl_c = (gaussian_log_prob(c, mc, lc) - self.queue.log_prob(c)).mean(0)
-        kl_z = 0.5 * (lz.exp() + mz**2 - 1 - lz).sum(-1)
-        per_agent = nll + cfg.beta_c * kl_c + cfg.beta_z * kl_z
+        c_input = batch.pool(context) if self.c_per_scene else context
+        return Posteriors(*self.to_z(context), *self.to_c(c_input))
+
+    def latents(
+        self, batch: Batch, post: Posteriors, samples: int, c_source: str, z_mean: bool = False
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Samples of Z (S, N, dz) and C (S, N or B, dc).
+
+        C from the queue's mixture (``prior``), the posterior, or the posterior's mean; Z from
+        its posterior, or at its mean with ``z_mean``.
+        """
+        mz, lz, mc, lc = post.z_mean, post.z_logvar, post.c_mean, post.c_logvar
+        scenes, scene_of = batch.num_scenes, batch.scene_of
+        z = mz.expand(samples, *mz.shape)
+        if not z_mean:
+            z = z + (0.5 * lz).exp() * torch.randn(samples, *mz.shape)
+        if c_source == "prior":  # the back-door average over P(C), Eq 16: one C per scene
+            c = self.queue.mixture.sample(samples * scenes).view(samples, scenes, -1)
+            if not self.c_per_scene:
+                c = c[:, scene_of]
+        elif c_source == "posterior":
+            c = mc + (0.5 * lc).exp() * torch.randn(samples, *mc.shape)
+        elif c_source == "posterior_mean":
+            c = mc.expand(samples, *mc.shape)
+        else:
+            raise ValueError(f"c_source {c_source!r}: expected one of {', '.join(C_SOURCES)}")
+        return z, c
+
+    def conditions(self, batch: Batch, z: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
+        """[z, c] per agent (S, N, dz + dc); with C per scene each agent gets its scene's."""
+        return torch.cat([z, c[:, batch.scene_of] if self.c_per_scene else c], -1)
+
+    def per_scene(self, per_c: torch.Tensor, batch: Batch) -> torch.Tensor:
+        """A figure per C (..., N or B) as a per-scene figure (..., B)."""
+        return per_c if self.c_per_scene else batch.per_scene_mean(per_c)
+
+    def reconstruct_past(self, cond: torch.Tensor) -> torch.Tensor:
+        """Normalised observed displacements (T_obs - 1, S, N, 2) decoded from [z, c]."""
+        return self.past(cond).unflatten(-1, (OBS_LEN - 1, 2)).movedim(-2, 0)
+
+    def _protection(self) -> tuple[Anchors | None, bool, bool]:
+        """A random batch of the stored anchors, and which regularisers are on."""
+        q = self.queue.config
+        if self.anchors is None or not q.divergence:
+            return None, False, False
+        anchors = self.anchors.select(torch.randperm(len(self.anchors))[: q.anchor_batch])
+        return anchors, q.distill_decoder, q.distill_encoder
+
+    def loss(self, batch: Batch, k_train: int = 1) -> tuple[torch.Tensor, dict[str, float]]:
+        cfg = self.config
+        anchors, hold_decoder, hold_encoder = self._protection()
+        agents = len(batch.scene_of)
+        post = self.posteriors(batch)
+        samples = max(k_train, cfg.n_mc)
+        z, c = self.latents(batch, post, samples, "posterior")
+        cond = self.conditions(batch, z, c)
+        last_rel = batch.obs_rel[-1] / batch.scale
+        if hold_decoder:  # the anchors as extra rows of the same decoder call
+            rows = torch.cat([cond[:k_train].flatten(0, 1), anchors.cond])
+            last = torch.cat([last_rel.repeat(k_train, 1), anchors.last_rel])
+            out = self.backbone.decode(rows[None], last)[:, 0]
+            pred, anchor_future = out[:, : k_train * agents], out[:, k_train * agents :]
+            pred = pred.unflatten(1, (k_train, agents))
+        else:
+            pred = self.backbone.decode(cond[:k_train], last_rel)
+        nll = self.nll(batch, pred)
+        past_error = (
+            self.reconstruct_past(cond[: cfg.n_mc]) - (batch.obs_rel[1:] / batch.scale)[:, None]
+        )
+        nll_x = (past_error**2).sum(dim=(0, 3)).mean(0) / (2 * cfg.likelihood_std**2)
+        log_q = gaussian_log_prob(c[: cfg.n_mc], post.c_mean, post.c_logvar)
+        kl_c = (log_q - self.queue.training_prior().log_prob(c[: cfg.n_mc])).mean(0)
+        kl_c = self.per_scene(kl_c, batch)  # (B,)
+        lz = post.z_logvar
+        kl_z = 0.5 * (lz.exp() + post.z_mean**2 - 1 - lz).sum(-1)
+        future = variety_loss(nll, batch)
+        per_agent = batch.per_scene_mean(cfg.beta_x * nll_x + cfg.beta_z * kl_z)
+        loss = future + per_agent.mean() + cfg.beta_c * kl_c.mean()
         parts = {
-            name: scene_mean(v, batch).item()
-            for name, v in (("nll", nll), ("kl_c", kl_c), ("kl_z", kl_z))
+            "nll": future.item(),
+            "nll_past": batch.per_scene_mean(nll_x).mean().item(),
+            "kl_c": kl_c.mean().item(),
+            "kl_z": batch.per_scene_mean(kl_z).mean().item(),
         }
-        return scene_mean(per_agent, batch), parts
+        weight = self.queue.config.distill_weight
+        if hold_decoder:
+            error = ((anchor_future - anchors.future) ** 2).sum(dim=(0, 2)).mean()
+            held = error / (2 * cfg.likelihood_std**2)
+            loss, parts["distill_decoder"] = loss + weight * held, held.item()
+        if hold_encoder:  # its own encoder call: padded into the batch, each would take A slots
+            held_post = self.posteriors(make_batch(anchors.inputs))
+            held = symmetric_kl(
+                held_post.c_mean, held_post.c_logvar, anchors.c_mean, anchors.c_logvar
+            ).mean()
+            loss, parts["distill_encoder"] = loss + weight * held, held.item()
+        return loss, parts
+
+    @torch.no_grad()
+    def predict(
+        self, batch: Batch, samples: int, c_source: str | None = None, z_mean: bool = False
+    ) -> torch.Tensor:
+        """K sampled futures in metres (K, 12, N, 2); C from ``c_source`` (default: config)."""
+        source = c_source or self.config.c_source
+        z, c = self.latents(batch, self.posteriors(batch), samples, source, z_mean)
+        return _positions(batch, self.decode(batch, self.conditions(batch, z, c)))
+
+    def evaluation_variants(self) -> dict[str, dict]:
+        other = "posterior" if self.config.c_source == "prior" else "prior"
+        return {f"c_{other}": {"c_source": other}}
+
+
+@torch.no_grad()
+def make_anchors(model: C2INetModel, components: GaussianMixture, count: int) -> Anchors:
+    """Anchors of one task: latents from its components and what the network made of them."""
+    cond = torch.cat([torch.randn(count, model.config.z_dim), components.sample(count)], -1)
+    past = model.reconstruct_past(cond[None])[:, 0]  # (7, A, 2)
+    observed = torch.cat([torch.zeros(1, count, 2), past.cumsum(0)])  # (8, A, 2)
+    frames = torch.cat([observed, observed[-1:].expand(12, count, 2)])  # the future is unused
+    inputs = Windows(frames.transpose(0, 1).numpy().copy(), np.arange(count + 1))
+    future = model.backbone.decode(cond[None], past[-1])[:, 0]
+    post = model.posteriors(make_batch(inputs))
+    return Anchors(cond, past[-1], future, inputs, post.c_mean, post.c_logvar)
 
 
 class ConstantVelocity(nn.Module):
@@ -146,3 +325,6 @@ class ConstantVelocity(nn.Module):
         steps = torch.arange(1, batch.fut.shape[0] + 1, dtype=batch.obs.dtype)[:, None, None]
         future = batch.obs[-1] + steps * batch.obs_rel[-1]
         return future.expand(samples, *future.shape)
+
+    def evaluation_variants(self) -> dict[str, dict]:
+        return {}

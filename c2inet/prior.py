@@ -102,8 +102,14 @@ class QueueConfig:
 
     capacity: int = 45  # gamma
     weight_opt: bool = True  # Eq 9; off: uniform weights ("average weight parameters")
-    divergence: bool = True  # the symmetric-KL diversity term in Eq 8 and pruning
+    divergence: bool = True  # Table 4's switch: the diversity term and every regulariser
     pruning: bool = True
+    task_kl: bool = True  # a task's training KL uses that task's components (BooVAE)
+    distill_decoder: bool = True  # hold the decoder to its outputs at old components' samples
+    distill_encoder: bool = True  # hold Q(C|X) to its values at old pseudo-inputs
+    anchors: int = 64  # anchors stored per task for the two above
+    anchor_batch: int = 32  # anchors drawn for each training step
+    distill_weight: float = 1.0
     lambda_div: float = 0.1
     fit_steps: int = 200  # Adam steps of the Eq 8 component fit
     fit_samples: int = 64
@@ -112,12 +118,17 @@ class QueueConfig:
 
 
 class PriorQueue:
-    """The memory queue of prior components, with the online C2INet update rules."""
+    """The memory queue of prior components, with the online C2INet update rules.
+
+    Every component remembers the task that added it (``owners``); before any task the queue
+    holds N(0, I), owned by no task (-1).
+    """
 
     def __init__(self, dim: int, config: QueueConfig | None = None):
         self.dim = dim
         self.config = config or QueueConfig()
         self.mixture = GaussianMixture(torch.zeros(1, dim), torch.zeros(1, dim), torch.ones(1))
+        self.owners = [-1]
 
     def __len__(self) -> int:
         return len(self.mixture)
@@ -125,11 +136,28 @@ class PriorQueue:
     def log_prob(self, c: torch.Tensor) -> torch.Tensor:
         return self.mixture.log_prob(c)
 
-    def reset(self, mean: torch.Tensor, logvar: torch.Tensor) -> None:
+    def task_mixture(self, owner: int) -> GaussianMixture:
+        """The components added by task ``owner``, with their weights renormalised."""
+        keep = torch.tensor([o == owner for o in self.owners])
+        if not keep.any():
+            raise ValueError(f"no component of task {owner} in the queue")
+        m = self.mixture
+        weights = m.weights[keep]
+        return GaussianMixture(m.means[keep], m.logvars[keep], weights / weights.sum())
+
+    def training_prior(self) -> GaussianMixture:
+        """The prior of the training KL: the newest task's components (``task_kl``), else all."""
+        cfg = self.config
+        if cfg.task_kl and cfg.divergence and self.owners[-1] >= 0:
+            return self.task_mixture(self.owners[-1])
+        return self.mixture
+
+    def reset(self, mean: torch.Tensor, logvar: torch.Tensor, owner: int = 0) -> None:
         """Start the queue with one component (the first task's initial prior)."""
         self.mixture = GaussianMixture(mean[None].detach(), logvar[None].detach(), torch.ones(1))
+        self.owners = [owner]
 
-    def add(self, mean: torch.Tensor, logvar: torch.Tensor, new_weight: float) -> None:
+    def add(self, mean: torch.Tensor, logvar: torch.Tensor, new_weight: float, owner: int) -> None:
         """Append a component with weight ``new_weight``; the old ones keep 1 - new_weight."""
         m = self.mixture
         weights = torch.cat([(1 - new_weight) * m.weights, torch.tensor([new_weight])])
@@ -140,9 +168,11 @@ class PriorQueue:
             torch.cat([m.logvars, logvar[None].detach()]),
             weights,
         )
+        self.owners.append(owner)
 
     def remove(self, index: int) -> None:
         self.mixture = self.mixture.without(index)
+        del self.owners[index]
 
     # --- Eq 8: the new component -------------------------------------------------------------
     def fit_component(self, target: GaussianMixture, generator: torch.Generator | None = None):
@@ -232,7 +262,9 @@ class PriorQueue:
 
     def state_dict(self) -> dict[str, torch.Tensor]:
         m = self.mixture
-        return {"means": m.means, "logvars": m.logvars, "weights": m.weights}
+        owners = torch.tensor(self.owners)
+        return {"means": m.means, "logvars": m.logvars, "weights": m.weights, "owners": owners}
 
     def load_state_dict(self, state: dict[str, torch.Tensor]) -> None:
         self.mixture = GaussianMixture(state["means"], state["logvars"], state["weights"])
+        self.owners = state["owners"].tolist()

@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from c2inet.metrics import METRICS, average_seen, backward_transfer, forgetting
+from c2inet.metrics import average_seen, backward_transfer, forgetting_final, forgetting_worst
 
 
 def _rounded(values) -> list[float]:
@@ -20,29 +20,44 @@ def _clean(array: np.ndarray) -> list:
     ]
 
 
+def _forgetting(score, matrices: list[np.ndarray]) -> tuple[list[float], float]:
+    """Per task (mean over seeds) and overall, of a forgetting score."""
+    if len(matrices[0]) < 2:
+        return [], 0.0
+    per_task = np.mean([score(m) for m in matrices], 0)
+    return _rounded(per_task), round(float(per_task.mean()), 6)
+
+
 def summarise(
     runs: list[dict[str, np.ndarray]], extras: list[list[dict[str, Any]]]
 ) -> dict[str, Any]:
-    """Mean (and std over seeds) of each matrix, with the derived continual scores of the mean."""
+    """Mean (and std over seeds) of each matrix, with the derived continual scores.
+
+    Forgetting is given twice, each named for what it is: ``forgetting_final_ade`` (Chaudhry et
+    al. 2018: final error minus the best earlier one) and ``forgetting_worst_ade`` (the worst
+    error after leaving a task minus the error right after training it).
+    """
     out: dict[str, Any] = {"seeds": len(runs)}
-    for key in METRICS:
+    for key in runs[0]:
         stack = np.stack([r[key] for r in runs])
         out[key] = _clean(stack.mean(0))
         out[f"{key}_std"] = _clean(stack.std(0))
-    ade = [r["ade"] for r in runs]
-    seen_ade = np.array([average_seen(m) for m in ade])
-    seen_fde = np.array([average_seen(r["fde"]) for r in runs])
-    out["avg_seen_ade"] = _rounded(seen_ade.mean(0))
-    out["avg_seen_fde"] = _rounded(seen_fde.mean(0))
-    out["avg_seen_ade_std"] = _rounded(seen_ade.std(0))
-    per_task = np.mean([forgetting(m) for m in ade], 0) if len(ade[0]) > 1 else np.zeros(0)
-    out["forgetting_ade_per_task"] = _rounded(per_task)
-    out["forgetting_ade"] = round(float(per_task.mean()), 6) if per_task.size else 0.0
-    out["backward_transfer_ade"] = round(float(np.mean([backward_transfer(m) for m in ade])), 6)
-    if extras and extras[0] and "queue_size" in extras[0][0]:
-        out["queue_size"] = [
-            int(np.mean([e[i]["queue_size"] for e in extras])) for i in range(len(extras[0]))
-        ]
+    for metric in ("ade", "fde", "ade_k1", "fde_k1"):
+        seen = np.array([average_seen(r[metric]) for r in runs])
+        out[f"avg_seen_{metric}"] = _rounded(seen.mean(0))
+        out[f"avg_seen_{metric}_std"] = _rounded(seen.std(0))
+    for metric in ("ade", "ade_k1"):
+        matrices = [r[metric] for r in runs]
+        for name, score in (("final", forgetting_final), ("worst", forgetting_worst)):
+            per_task, mean = _forgetting(score, matrices)
+            out[f"forgetting_{name}_{metric}_per_task"] = per_task
+            out[f"forgetting_{name}_{metric}"] = mean
+    out["backward_transfer_ade"] = round(
+        float(np.mean([backward_transfer(r["ade"]) for r in runs])), 6
+    )
+    for key in ("queue_size", "pruned"):
+        if extras and extras[0] and key in extras[0][0]:
+            out[key] = [int(np.mean([e[i][key] for e in extras])) for i in range(len(extras[0]))]
     return out
 
 
@@ -51,15 +66,77 @@ def column_labels(labels: list[str]) -> list[str]:
     return [label if i == 0 else f":{label}" for i, label in enumerate(labels)]
 
 
-def table_rows(methods: dict[str, dict[str, Any]], labels: list[str]) -> list[list[str]]:
-    header = ["method", *column_labels(labels), "forgetting"]
+def table_rows(
+    methods: dict[str, dict[str, Any]], labels: list[str], metric: str = "ade"
+) -> list[list[str]]:
+    """One row per method: ADE/FDE averaged over seen tasks after each task, then forgetting.
+
+    ``metric`` ``ade`` gives best of K, ``ade_k1`` one sample.
+    """
+    fde = metric.replace("ade", "fde")
+    header = ["method", *column_labels(labels), "forgetting final", "forgetting worst"]
     rows = [header]
     for name, m in methods.items():
         cells = [
-            f"{a:.3f}/{f:.3f}" for a, f in zip(m["avg_seen_ade"], m["avg_seen_fde"], strict=True)
+            f"{a:.3f}/{f:.3f}"
+            for a, f in zip(m[f"avg_seen_{metric}"], m[f"avg_seen_{fde}"], strict=True)
         ]
-        rows.append([name, *cells, f"{m['forgetting_ade']:+.3f}"])
+        final, worst = m[f"forgetting_final_{metric}"], m[f"forgetting_worst_{metric}"]
+        rows.append([name, *cells, f"{final:+.3f}", f"{worst:+.3f}"])
     return rows
+
+
+def summarise_diagnostics(runs: list[list[dict[str, Any]]]) -> list[dict[str, Any]]:
+    """Per task, the mean over seeds of every numeric diagnostic (lists element-wise); the
+    queue's details are the first seed's."""
+    out = []
+    for per_seed in zip(*runs, strict=True):
+        merged: dict[str, Any] = {}
+        for key, first in per_seed[0].items():
+            values = [d.get(key) for d in per_seed]
+            if key == "queue" or any(v is None for v in values):
+                merged[key] = first
+            elif isinstance(first, list):
+                merged[key] = _rounded(np.mean(values, axis=0))
+            else:
+                merged[key] = round(float(np.mean(values)), 4)
+        out.append(merged)
+    return out
+
+
+DIAGNOSTIC_COLUMNS = (
+    ("probe_observed", "probe X"),
+    ("probe_context", "probe context"),
+    ("probe_c", "probe C"),
+    ("mi_xc", "MI(X;C)"),
+    ("kl_c", "KL_C"),
+    ("kl_z", "KL_Z"),
+    ("c_effect", "C moves (m)"),
+    ("ade_c_mean", "ADE C=mean"),
+    ("ade_c_prior", "ADE C~prior"),
+    ("queue_size", "queue"),
+    ("ari", "ARI"),
+    ("nmi", "NMI"),
+    ("knob_r2", "knob R^2"),
+)
+
+
+def diagnostics_table(diagnostics: list[dict[str, Any]], labels: list[str]) -> str:
+    """Markdown: one row per task, the columns a method has (lists averaged over seen tasks)."""
+
+    def cell(d: dict[str, Any], key: str) -> str:
+        value = d["queue"]["size"] if key == "queue_size" and "queue" in d else d.get(key)
+        if isinstance(value, list):
+            value = float(np.mean(value))
+        return "-" if value is None else f"{value:.3g}"
+
+    columns = [(k, t) for k, t in DIAGNOSTIC_COLUMNS if any(cell(d, k) != "-" for d in diagnostics)]
+    rows = [["after", *(t for _, t in columns)]]
+    rows += [
+        [label, *(cell(d, k) for k, _ in columns)]
+        for label, d in zip(labels, diagnostics, strict=True)
+    ]
+    return markdown_table(rows)
 
 
 def text_table(methods: dict[str, dict[str, Any]], labels: list[str]) -> str:
@@ -77,16 +154,23 @@ def markdown_table(rows: list[list[str]]) -> str:
 def markdown_report(
     scenario: str, labels: list[str], k: int, methods: dict[str, dict[str, Any]]
 ) -> str:
-    """The run's report: the Table-2-style summary, then every method's matrices."""
+    """The run's report: the Table-2-style summaries, then every method's matrices and
+    diagnostics."""
     parts = [
         f"# Continual run: `{scenario}`",
         "",
-        f"Cells are ADE/FDE in metres, best of K = {k} with the minimum per scene (joint), "
-        "averaged over the tasks seen so far after each task (the paper's Table 2). "
-        "Forgetting: mean over tasks of the worst ADE after leaving a task minus the ADE "
-        "right after training it.",
+        "Cells are ADE/FDE in metres averaged over the tasks seen so far after each task (the "
+        "paper's Table 2). Forgetting of ADE, mean over tasks but the last: *final* is the final "
+        "error minus the best earlier one (Chaudhry et al. 2018), *worst* the worst error after "
+        "leaving a task minus the error right after training it.",
         "",
-        markdown_table(table_rows(methods, labels)),
+        f"Best of K = {k}, the minimum taken per scene (joint):",
+        "",
+        markdown_table(table_rows(methods, labels, "ade")),
+        "",
+        "One sample (K = 1):",
+        "",
+        markdown_table(table_rows(methods, labels, "ade_k1")),
     ]
     for name, m in methods.items():
         parts += ["", f"## {name} ({m['seeds']} seed(s))", ""]
@@ -99,8 +183,19 @@ def markdown_report(
             for i, row in enumerate(m[key]):
                 rows.append([labels[i], *("-" if v is None else f"{v:.3f}" for v in row)])
             parts += [f"{title}:", "", markdown_table(rows), ""]
+        if m.get("diagnostics"):
+            parts += [
+                "Diagnostics after each task, on the test splits of the tasks seen so far (probes: "
+                "cross-validated task-id accuracy of a linear probe; MI in nats, at most "
+                f"{m['diagnostics'][-1].get('mi_bound', '?')}):",
+                "",
+                diagnostics_table(m["diagnostics"], labels),
+                "",
+            ]
         if "queue_size" in m:
             parts.append(f"Prior queue size after each task: {m['queue_size']}")
+        if "pruned" in m:
+            parts.append(f"Components pruned after each task: {m['pruned']}")
     return "\n".join(parts) + "\n"
 
 

@@ -19,18 +19,25 @@ import torch
 
 from c2inet.batch import batches
 from c2inet.data import Windows
+from c2inet.diagnostics import diagnose
 from c2inet.methods.base import Method, TaskContext
-from c2inet.metrics import METRICS, evaluate_predictions
+from c2inet.metrics import evaluate_predictions
+
+VARIANT_METRICS = ("ade", "fde", "ade_k1", "fde_k1")
 
 
 @dataclass
 class Task:
-    """One domain as the learner sees it: windows per split (val may be None)."""
+    """One domain as the learner sees it: windows per split (val may be None).
+
+    ``value`` is the domain's knob value where it has one (diagnostics regress it from C).
+    """
 
     name: str
     train: Windows
     val: Windows | None
     test: Windows
+    value: float | None = None
 
 
 @dataclass
@@ -39,9 +46,11 @@ class TrainConfig:
     batch_scenes: int = 16
     lr: float = 3e-3
     k: int = 20  # samples for best-of-K
+    k_train: int = 5  # samples of the variety loss (best of k_train per scene), every method
     seed: int = 0
     eval_batch_scenes: int = 256
     val_every: int = 1  # epochs between validation curves (0: never)
+    diagnostics: bool = True  # measure the confounder's diagnostics after each task
 
 
 @dataclass
@@ -52,6 +61,7 @@ class Result:
     matrices: dict[str, np.ndarray]
     summaries: list[dict[str, Any]] = field(default_factory=list)
     history: list[dict[str, Any]] = field(default_factory=list)
+    diagnostics: list[dict[str, Any]] = field(default_factory=list)  # one per task
 
 
 Observer = Callable[[str, dict[str, Any]], None]
@@ -64,28 +74,53 @@ def _generator(seed: int, method: str) -> np.random.Generator:
 
 
 def sample_predictions(
-    model: torch.nn.Module, windows: Windows, k: int, seed: int, batch_scenes: int = 256
+    model: torch.nn.Module,
+    windows: Windows,
+    k: int,
+    seed: int,
+    batch_scenes: int = 256,
+    **options: Any,
 ) -> np.ndarray:
     """``k`` sampled futures of every agent of ``windows``, (K, T, N, 2) in metres.
 
     Reproducible for a seed, and the global RNG stream of training is left untouched.
+    ``options`` go to ``model.predict`` (e.g. C2INet's ``c_source``).
     """
     was_training = getattr(model, "training", False)
     model.eval()
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(seed)
-        preds = [model.predict(batch, k).numpy() for batch in batches(windows, batch_scenes)]
+        preds = [
+            model.predict(batch, k, **options).numpy() for batch in batches(windows, batch_scenes)
+        ]
     model.train(was_training)
     return np.concatenate(preds, axis=2)
 
 
 def evaluate(
-    model: torch.nn.Module, windows: Windows, k: int, seed: int, batch_scenes: int = 256
+    model: torch.nn.Module,
+    windows: Windows,
+    k: int,
+    seed: int,
+    batch_scenes: int = 256,
+    **options: Any,
 ) -> dict[str, float]:
     """Metrics of ``model`` on ``windows`` with ``k`` samples, reproducible for a seed."""
-    pred = sample_predictions(model, windows, k, seed, batch_scenes)
+    pred = sample_predictions(model, windows, k, seed, batch_scenes, **options)
     truth = windows.positions[:, windows.obs_len :].transpose(1, 0, 2)
     return evaluate_predictions(pred, truth, windows.scene_start)
+
+
+def evaluate_all(
+    model: torch.nn.Module, windows: Windows, k: int, seed: int, batch_scenes: int = 256
+) -> dict[str, float]:
+    """:func:`evaluate` for the model's default, and for each of its evaluation variants with
+    the variant's name appended to the metric names (``ade_c_posterior``)."""
+    scores = evaluate(model, windows, k, seed, batch_scenes)
+    for suffix, options in model.evaluation_variants().items():
+        other = evaluate(model, windows, k, seed, batch_scenes, **options)
+        scores.update({f"{m}_{suffix}": v for m, v in other.items() if m in VARIANT_METRICS})
+    return scores
 
 
 class ContinualTrainer:
@@ -117,24 +152,32 @@ class ContinualTrainer:
         model = method.build_model()
         optimiser = torch.optim.Adam(model.parameters(), lr=cfg.lr) if method.trains else None
         n = len(self.tasks)
-        result = Result([t.name for t in self.tasks], {m: np.full((n, n), np.nan) for m in METRICS})
+        result = Result([t.name for t in self.tasks], {})
         for i, task in enumerate(self.tasks):
             seen = [t.train for t in self.tasks[:i]] if method.sees_old_tasks else []
             ctx = TaskContext(i, task.name, task.train, model, optimiser, rng, seen)
             if method.trains:
                 self._train_task(ctx)
             for j, other in enumerate(self.tasks):
-                scores = evaluate(model, other.test, cfg.k, cfg.seed + j, cfg.eval_batch_scenes)
-                for metric in METRICS:
-                    result.matrices[metric][i, j] = scores[metric]
+                scores = evaluate_all(model, other.test, cfg.k, cfg.seed + j, cfg.eval_batch_scenes)
+                for metric, value in scores.items():
+                    result.matrices.setdefault(metric, np.full((n, n), np.nan))[i, j] = value
             result.summaries.append(method.summary())
+            if cfg.diagnostics:
+                seen_tasks = self.tasks[: i + 1]
+                result.diagnostics.append(
+                    diagnose(
+                        model, [t.test for t in seen_tasks], [t.value for t in seen_tasks], cfg.seed
+                    )
+                )
             self._notify(
                 "task_end",
                 {
                     "task": i,
                     "name": task.name,
-                    "row": {m: result.matrices[m][i].tolist() for m in METRICS},
+                    "row": {m: result.matrices[m][i].tolist() for m in result.matrices},
                     "model": model,
+                    "diagnostics": result.diagnostics[-1] if cfg.diagnostics else {},
                 },
             )
             if self.checkpoint_dir is not None and method.trains:
@@ -153,7 +196,7 @@ class ContinualTrainer:
             totals: dict[str, float] = {}
             steps = 0
             for batch in batches(data, cfg.batch_scenes, ctx.rng):
-                loss, parts = model.loss(batch)
+                loss, parts = model.loss(batch, cfg.k_train)
                 extra = method.extra_loss(model)
                 if extra is not None:
                     loss = loss + extra

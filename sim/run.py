@@ -3,7 +3,8 @@
 Writes under ``runs/<scenario>/`` (or ``--out``): ``run_card.json`` (resolved configuration,
 versions, data hashes), ``report.md``, ``matrices/*.csv``, ``checkpoints/``, and ``metrics.json``,
 the machine-readable contract (per method: best-of-K joint ``ade``/``fde``, single-sample
-``ade_k1``/``fde_k1``, ``avg_seen_ade``, ``forgetting_ade``, ``seeds``; row i is after task i).
+``ade_k1``/``fde_k1``, ``avg_seen_ade``, ``forgetting_final_ade`` and ``forgetting_worst_ade``,
+``diagnostics``, ``seeds``; row i is after task i).
 """
 
 from __future__ import annotations
@@ -19,15 +20,21 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
 from tqdm import tqdm
 
 from c2inet.backbones import BACKBONES
 from c2inet.methods.base import build_options, get_method
-from c2inet.metrics import METRICS
 from c2inet.model import ModelConfig
-from c2inet.report import markdown_report, matrix_csv, summarise, text_table
+from c2inet.report import (
+    markdown_report,
+    matrix_csv,
+    summarise,
+    summarise_diagnostics,
+    text_table,
+)
 from c2inet.trainer import ContinualTrainer, Task, TrainConfig
-from sim.cli import add_workers, bounded_int, guarded, parser
+from sim.cli import add_threads, add_workers, bounded_int, guarded, parser
 from sim.data import SPLITS, cut_windows, window_members
 from sim.domains import build_domain, rollout_scene
 from sim.errors import InputError
@@ -68,7 +75,8 @@ def make_tasks(
             splits[split] = windows
         if splits["train"] is None or splits["test"] is None:
             raise InputError(f"domain {domain.name}: no 20-frame window in its train or test split")
-        tasks.append(Task(domain.name, splits["train"], splits["val"], splits["test"]))
+        value = spec.value if isinstance(spec.value, int | float) else None
+        tasks.append(Task(domain.name, splits["train"], splits["val"], splits["test"], value))
         domains.append(domain)
     return tasks, domains
 
@@ -194,6 +202,7 @@ def main(argv: list[str] | None = None) -> int:
         help="override an option: model.beta_c=0, train.lr=0.001, c2inet-online.pruning=false",
     )
     add_workers(p)
+    add_threads(p)
     p.add_argument("--no-record", action="store_true", help="do not write recording.rrd")
     p.add_argument(
         "--rerun",
@@ -209,6 +218,7 @@ def main(argv: list[str] | None = None) -> int:
         and args.rerun.partition("=")[0] != "connect"
     ):
         raise InputError(f"--rerun {args.rerun!r}: expected spawn, connect or connect=URL")
+    torch.set_num_threads(args.threads)
     epochs = args.epochs if args.epochs is not None else (2 if args.quick else 20)
     k = args.k if args.k is not None else (5 if args.quick else 20)
     methods = parse_methods(args.methods)
@@ -270,6 +280,7 @@ def main(argv: list[str] | None = None) -> int:
             [r.matrices for r in runs[name]], [r.summaries for r in runs[name]]
         )
         results[name]["history"] = runs[name][0].history
+        results[name]["diagnostics"] = summarise_diagnostics([r.diagnostics for r in runs[name]])
     wall = time.perf_counter() - started
 
     task_names = [t.name for t in tasks]
@@ -285,7 +296,7 @@ def main(argv: list[str] | None = None) -> int:
     }
     write_text_atomic(out / "metrics.json", json.dumps(metrics, indent=1) + "\n")
     for name, result in results.items():
-        for key in METRICS:
+        for key in (m for m in result if m in runs[name][0].matrices):
             write_text_atomic(
                 out / "matrices" / f"{name}_{key}.csv", matrix_csv(result[key], task_names)
             )
@@ -295,6 +306,7 @@ def main(argv: list[str] | None = None) -> int:
         "seeds": args.seeds,
         "methods": methods,
         "quick": args.quick,
+        "threads": args.threads,
         "model": asdict(model_config),
         "train": asdict(train_config),
         "settings": settings,

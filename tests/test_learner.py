@@ -6,7 +6,7 @@ import torch
 
 from c2inet.batch import make_batch
 from c2inet.data import Windows
-from c2inet.methods.base import TaskContext, get_method
+from c2inet.methods.base import TaskContext, discover, get_method
 from c2inet.model import C2INetModel, ModelConfig, Predictor
 from c2inet.trainer import ContinualTrainer, Task, TrainConfig, load_checkpoint
 from sim.domains import build_domain
@@ -86,9 +86,19 @@ def tiny_tasks(scenario="crowd_noise_0.1,0.2", train=8):
     return tasks
 
 
-@pytest.mark.parametrize(
-    "name", sorted(["finetune", "ewc", "coresets", "c2inet-online", "joint", "cv"])
-)
+def test_every_method_is_discovered():
+    assert set(discover()) >= {
+        "finetune",
+        "ewc",
+        "coresets",
+        "c2inet-online",
+        "c2inet-noqueue",
+        "joint",
+        "cv",
+    }
+
+
+@pytest.mark.parametrize("name", sorted(discover()))
 def test_every_method_meets_the_contract(tmp_path, name):
     method = get_method(name)(ModelConfig())
     result = ContinualTrainer(
@@ -102,7 +112,7 @@ def test_every_method_meets_the_contract(tmp_path, name):
         state = load_checkpoint(tmp_path / "task_01.pt")
         assert state["task"] == 1 and "model" in state and "numpy_rng" in state
         if name == "c2inet-online":
-            assert set(state["method"]["queue"]) == {"means", "logvars", "weights"}
+            assert set(state["method"]["queue"]) == {"means", "logvars", "weights", "owners"}
             assert result.summaries[-1]["queue_size"] >= 2
         assert {r["task"] for r in result.history} == {0, 1}
 
@@ -117,7 +127,9 @@ def test_same_seed_same_training_on_cpu():
     np.testing.assert_array_equal(runs[0].matrices["ade"], runs[1].matrices["ade"])
 
 
-@pytest.mark.parametrize("name", ["finetune", "ewc", "coresets", "c2inet-online", "joint"])
+@pytest.mark.parametrize(
+    "name", ["finetune", "ewc", "coresets", "c2inet-online", "c2inet-noqueue", "joint"]
+)
 def test_trained_methods_beat_constant_velocity_on_the_newest_task(name):
     tasks = tiny_tasks("crowd_noise_0.5,0.6", train=80)
     config = TrainConfig(epochs=6, k=20)

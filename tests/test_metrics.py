@@ -9,7 +9,8 @@ from c2inet.metrics import (
     best_of_k,
     displacement_errors,
     evaluate_predictions,
-    forgetting,
+    forgetting_final,
+    forgetting_worst,
 )
 
 
@@ -48,6 +49,7 @@ def test_evaluate_predictions_labels_every_aggregation():
 def test_continual_scores_by_hand():
     r = np.array([[1.0, 5.0, 5.0], [2.0, 1.0, 5.0], [1.5, 3.0, 2.0]])
     np.testing.assert_allclose(average_seen(r), [1.0, 1.5, (1.5 + 3.0 + 2.0) / 3])
-    np.testing.assert_allclose(forgetting(r), [2.0 - 1.0, 3.0 - 1.0])
+    np.testing.assert_allclose(forgetting_worst(r), [2.0 - 1.0, 3.0 - 1.0])
+    np.testing.assert_allclose(forgetting_final(r), [1.5 - 1.0, 3.0 - 1.0])
     assert backward_transfer(r) == pytest.approx(((1.5 - 1.0) + (3.0 - 1.0)) / 2)
     assert backward_transfer(r[:1, :1]) == 0.0

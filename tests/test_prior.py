@@ -46,27 +46,29 @@ def test_weights_sum_to_one_after_adds_and_removes():
     q = PriorQueue(3)
     q.reset(torch.zeros(3), torch.zeros(3))
     for k in range(5):
-        q.add(torch.full((3,), float(k)), torch.zeros(3), new_weight=0.2 + 0.1 * k)
+        q.add(torch.full((3,), float(k)), torch.zeros(3), new_weight=0.2 + 0.1 * k, owner=k)
         assert q.mixture.weights.sum().item() == pytest.approx(1.0)
     q.remove(2)
     assert len(q) == 5 and q.mixture.weights.sum().item() == pytest.approx(1.0)
+    assert q.owners == [0, 0, 2, 3, 4]
     uniform = PriorQueue(3, QueueConfig(weight_opt=False))
     uniform.reset(torch.zeros(3), torch.zeros(3))
-    uniform.add(torch.ones(3), torch.zeros(3), new_weight=0.9)
+    uniform.add(torch.ones(3), torch.zeros(3), new_weight=0.9, owner=1)
     assert uniform.mixture.weights.tolist() == [0.5, 0.5]
 
 
 def test_pruning_keeps_at_most_capacity_and_drops_the_redundant_component():
     q = PriorQueue(2, QueueConfig(capacity=3))
     q.reset(torch.tensor([0.0, 0.0]), torch.zeros(2))
-    q.add(torch.tensor([10.0, 0.0]), torch.zeros(2), 0.4)
-    q.add(torch.tensor([0.0, 10.0]), torch.zeros(2), 0.3)
-    q.add(torch.tensor([0.01, 0.0]), torch.zeros(2), 0.2)  # a near copy of the first
+    q.add(torch.tensor([10.0, 0.0]), torch.zeros(2), 0.4, owner=1)
+    q.add(torch.tensor([0.0, 10.0]), torch.zeros(2), 0.3, owner=2)
+    q.add(torch.tensor([0.01, 0.0]), torch.zeros(2), 0.2, owner=3)  # a near copy of the first
     removed = q.prune(torch.Generator().manual_seed(0))
     assert len(q) == 3 and len(removed) == 1 and removed[0] in (0, 3)
+    assert len(q.owners) == 3 and q.owners[1:] in ([1, 2], [2, 3])
     off = PriorQueue(2, QueueConfig(capacity=1, pruning=False))
     off.reset(torch.zeros(2), torch.zeros(2))
-    off.add(torch.ones(2), torch.zeros(2), 0.5)
+    off.add(torch.ones(2), torch.zeros(2), 0.5, owner=1)
     assert off.prune() == [] and len(off) == 2
 
 
@@ -112,6 +114,25 @@ def test_symmetric_kl_is_symmetric_non_negative_and_zero_on_equals():
         0.0, abs=1e-6
     )
     assert random_mixture().mean_pairwise_skl().item() >= 0
+
+
+def test_training_prior_is_the_newest_tasks_components_unless_switched_off():
+    q = PriorQueue(1)
+    assert q.training_prior() is q.mixture  # N(0, I) before any task
+    q.reset(torch.zeros(1), torch.zeros(1), owner=0)
+    q.add(torch.full((1,), 5.0), torch.zeros(1), 0.5, owner=1)
+    q.add(torch.full((1,), 7.0), torch.zeros(1), 0.2, owner=1)
+    newest = q.training_prior()
+    assert newest.means.flatten().tolist() == [5.0, 7.0]
+    assert newest.weights.sum().item() == pytest.approx(1.0)
+    for switch in ("task_kl", "divergence"):
+        off = PriorQueue(1, QueueConfig(**{switch: False}))
+        off.mixture, off.owners = q.mixture, q.owners
+        assert len(off.training_prior()) == 3
+    state = q.state_dict()
+    again = PriorQueue(1)
+    again.load_state_dict(state)
+    assert again.owners == [0, 1, 1]
 
 
 def test_moment_match_of_two_gaussians():

@@ -41,13 +41,24 @@ def test_quick_run_writes_every_output(tmp_path):
         assert m["avg_seen_ade"][1] == pytest.approx(
             (m["ade"][1][0] + m["ade"][1][1]) / 2, abs=1e-5
         )
-        assert math.isfinite(m["forgetting_ade"]) and m["seeds"] == 1
-    assert len(metrics["methods"]["c2inet-online"]["queue_size"]) == 3
+        assert math.isfinite(m["forgetting_final_ade"]) and m["seeds"] == 1
+    c2inet = metrics["methods"]["c2inet-online"]
+    assert len(c2inet["queue_size"]) == 3
+    # both test-time sources of C are scored; baselines have only their own
+    assert len(c2inet["ade_c_posterior"]) == 3 and "ade_c_posterior" not in metrics["methods"]["cv"]
+    diagnostics = c2inet["diagnostics"]
+    assert len(diagnostics) == 3 and len(diagnostics[-1]["kl_c"]) == 3
+    assert 0 <= diagnostics[-1]["probe_c"] <= 1 and diagnostics[-1]["knob_r2"] is not None
+    assert set(metrics["methods"]["finetune"]["diagnostics"][-1]) == {
+        "probe_observed",
+        "probe_context",
+    }
     with open(out / "matrices" / "finetune_ade.csv") as f:
         rows = list(csv.reader(f))
     assert rows[0] == ["after", *metrics["tasks"]] and len(rows) == 4
     card = json.loads((out / "run_card.json").read_text())
     assert card["versions"]["torch"].startswith("2.13") and len(card["domains"]) == 3
+    assert card["threads"] == 1 and card["train"]["k_train"] == 5
     assert all(d["hash"] for d in card["domains"])
     assert (out / "report.md").read_text().startswith("# Continual run")
     assert sorted(p.name for p in (out / "checkpoints" / "finetune" / "seed_0").iterdir()) == [
@@ -121,6 +132,9 @@ def test_seeds_give_mean_and_std(tmp_path):
         (["--scenario", "crowd_noise_0.1", "--workers", "0"], "--workers"),
         (["--scenario", "crowd_noise_0.1", "--seeds", "0"], "--seeds: 0 is not between 1"),
         (["--scenario", "crowd_noise_0.1", "--k", "many"], "--k: 'many' is not an integer"),
+        (["--scenario", "crowd_noise_0.1", "--threads", "0"], "--threads: 0 is not between 1"),
+        (["--scenario", "crowd_noise_0.1", "--set", "model.c_per=cell"], "expected agent or"),
+        (["--scenario", "crowd_noise_0.1", "--set", "model.c_source=mean"], "expected prior or"),
     ],
 )
 def test_bad_options_give_one_error_line(args, message):

@@ -52,6 +52,8 @@ class RecordingObserver:
         self.recorder.log_matrix_row(
             self.method, trained, [s.task for s in self.showcases], data["row"]
         )
+        if data.get("diagnostics"):
+            self.recorder.log_diagnostics(self.method, trained, data["diagnostics"])
         queue = getattr(model, "queue", None)
         if queue is not None:
             self.recorder.log_queue(

@@ -52,7 +52,8 @@ def default_blueprint(tasks: list[str], scenes: int) -> rrb.Blueprint:
             rrb.Tabs(*tabs),
             rrb.Vertical(
                 rrb.Tabs(
-                    *(rrb.TimeSeriesView(origin="/curves", contents=c, name=n) for n, c in curves)
+                    *(rrb.TimeSeriesView(origin="/curves", contents=c, name=n) for n, c in curves),
+                    rrb.TimeSeriesView(origin="/diagnostics", name="diagnostics (per task)"),
                 ),
                 rrb.TextDocumentView(origin="/run_card", name="run card"),
             ),
@@ -234,6 +235,16 @@ class RunRecorder:
         for j, name in enumerate(tasks):
             for metric in ("ade", "fde", "ade_k1"):
                 self.rec.log(f"curves/{method}/matrix/{metric}/{name}", rr.Scalars(row[metric][j]))
+
+    def log_diagnostics(self, method: str, trained_through: int, diagnostics: dict) -> None:
+        """The confounder's diagnostics after a task (``c2inet.diagnostics``), as scalars on the
+        ``task`` timeline; per-task lists are averaged over the tasks seen."""
+        self._time(task=trained_through)
+        for key, value in diagnostics.items():
+            if isinstance(value, list):
+                value = float(np.mean(value)) if value else None
+            if isinstance(value, int | float):
+                self.rec.log(f"diagnostics/{method}/{key}", rr.Scalars(float(value)))
 
     def log_queue(
         self, method: str, trained_through: int, means: np.ndarray, weights: np.ndarray

@@ -57,18 +57,17 @@ class STGATEncoder(nn.Module):
 
 
 class Decoder(nn.Module):
-    """Autoregressive LSTM decoder of future displacements, conditioned on a latent vector.
+    """Autoregressive LSTM decoder of future displacements from a conditioning vector.
 
-    With ``residual`` each step outputs the change of displacement (an acceleration), so an
-    untrained decoder already extrapolates at constant velocity and learning refines it.
+    Everything the decoder knows of the past comes through ``cond`` (its initial state) and the
+    last observed displacement (its first input). With ``residual`` each step outputs the change
+    of displacement, so an untrained decoder already extrapolates at constant velocity.
     """
 
-    def __init__(
-        self, context_dim: int, latent_dim: int, hidden=64, embed=16, pred_len=12, residual=False
-    ):
+    def __init__(self, cond_dim: int, hidden=64, embed=16, pred_len=12, residual=False):
         super().__init__()
         self.pred_len, self.residual = pred_len, residual
-        self.init = nn.Sequential(nn.Linear(context_dim + latent_dim, hidden), nn.Tanh())
+        self.init = nn.Sequential(nn.Linear(cond_dim, hidden), nn.Tanh())
         self.embed = nn.Linear(2, embed)
         self.cell = nn.LSTMCell(embed, hidden)
         self.out = nn.Linear(hidden, 2)
@@ -76,10 +75,10 @@ class Decoder(nn.Module):
             nn.init.zeros_(self.out.weight)
             nn.init.zeros_(self.out.bias)
 
-    def forward(self, context: torch.Tensor, latent: torch.Tensor, last_rel: torch.Tensor):
-        # context: (S, N, C); latent: (S, N, L); last_rel: (N, 2) -> (12, S, N, 2)
-        samples, agents = latent.shape[:2]
-        h = self.init(torch.cat([context, latent], -1)).flatten(0, 1)
+    def forward(self, cond: torch.Tensor, last_rel: torch.Tensor) -> torch.Tensor:
+        # cond: (S, N, D); last_rel: (N, 2) or (S, N, 2) -> (12, S, N, 2)
+        samples, agents = cond.shape[:2]
+        h = self.init(cond).flatten(0, 1)
         c = torch.zeros_like(h)
         step = last_rel.expand(samples, agents, 2).flatten(0, 1)
         outputs = []
@@ -91,18 +90,22 @@ class Decoder(nn.Module):
 
 
 class STGAT(nn.Module):
-    """The backbone as one module: ``encode`` then ``decode`` with any latent."""
+    """The backbone as one module: ``encode`` observed displacements, ``decode`` from a vector.
 
-    def __init__(self, latent_dim: int, pred_len: int = 12, residual: bool = False):
+    ``cond_dim`` is the size of what the decoder is conditioned on: the caller decides whether
+    that is the encoder's context with noise (the baselines) or latents alone (C2INet).
+    """
+
+    context_dim = 64  # the encoder's output: 32 trajectory + 32 graph
+
+    def __init__(self, cond_dim: int, pred_len: int = 12, residual: bool = False):
         super().__init__()
         self.encoder = STGATEncoder()
-        self.decoder = Decoder(
-            self.encoder.out_dim, latent_dim, pred_len=pred_len, residual=residual
-        )
-        self.out_dim = self.encoder.out_dim
+        self.decoder = Decoder(cond_dim, pred_len=pred_len, residual=residual)
+        assert self.encoder.out_dim == self.context_dim
 
     def encode(self, obs_rel: torch.Tensor, batch: Batch) -> torch.Tensor:
         return self.encoder(obs_rel, batch)
 
-    def decode(self, context, latent, last_rel):
-        return self.decoder(context, latent, last_rel)
+    def decode(self, cond: torch.Tensor, last_rel: torch.Tensor) -> torch.Tensor:
+        return self.decoder(cond, last_rel)

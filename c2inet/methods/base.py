@@ -8,6 +8,8 @@ says in its docstring which hooks it uses. Methods register by ``name``.
 from __future__ import annotations
 
 import dataclasses
+import importlib
+import pkgutil
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -82,6 +84,7 @@ class Method:
         return ctx.train
 
     def extra_loss(self, model: torch.nn.Module) -> torch.Tensor | None:
+        """A penalty added to every training step's loss (None: nothing)."""
         return None
 
     def after_epoch(self, ctx: TaskContext, epoch: int) -> None:
@@ -99,9 +102,17 @@ class Method:
         return {}
 
 
-def get_method(name: str) -> type[Method]:
-    from c2inet.methods import c2inet_online, coresets, cv, ewc, finetune, joint  # noqa: F401
+def discover() -> dict[str, type[Method]]:
+    """Every method: the modules of ``c2inet.methods`` register their classes on import."""
+    import c2inet.methods
 
+    for module in pkgutil.iter_modules(c2inet.methods.__path__):
+        importlib.import_module(f"c2inet.methods.{module.name}")
+    return METHODS
+
+
+def get_method(name: str) -> type[Method]:
+    discover()
     if name not in METHODS:
         raise KeyError(f"unknown method {name!r} (known: {', '.join(sorted(METHODS))})")
     return METHODS[name]

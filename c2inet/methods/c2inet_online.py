@@ -4,8 +4,16 @@ At the first epoch of a task, S samples of the task build an initial prior compo
 moment-matched aggregated posterior) that joins the queue; every ``interval`` epochs a new
 component is fitted by the boosting step (Eq 8) against the target
 T = (t-1)/t * M_old + 1/t * Q_cur and weighted by Eq 9; after the task the queue is pruned to
-``capacity`` (Eq 10 criterion). The training loss is Eq 10 (``C2INetModel.loss``).
-Hooks: ``before_task``, ``after_epoch``, ``after_task``. Example: ``--methods c2inet-online``
+``capacity`` (Eq 10 criterion). The training loss is Eq 10 (``C2INetModel.loss``), its KL taken
+against the task's own components (``task_kl``).
+
+The queue protects the network as in BooVAE: after each task, anchors are drawn from that task's
+components (z ~ N(0, I), c ~ its components, and the pseudo-input the past decoder makes of
+them); while later tasks train, the model's loss holds the decoder to what it predicted at the
+anchors (``distill_decoder``) and Q(C|X) at the pseudo-inputs to what it was
+(``distill_encoder``, symmetric KL). ``divergence=false`` switches off all of these together
+(Table 4). Hooks: ``before_task``, ``after_epoch``, ``after_task``.
+Example: ``--methods c2inet-online``
 """
 
 from __future__ import annotations
@@ -17,7 +25,7 @@ import torch
 
 from c2inet.batch import make_batch
 from c2inet.methods.base import Method, TaskContext
-from c2inet.model import C2INetModel
+from c2inet.model import Anchors, C2INetModel, make_anchors
 from c2inet.prior import GaussianMixture, QueueConfig, mix, moment_match
 
 TARGET_COMPONENTS = 256
@@ -27,7 +35,7 @@ TARGET_COMPONENTS = 256
 class C2INetOptions(QueueConfig):
     """The queue's switches and sizes, plus the schedule of Algorithm 1."""
 
-    interval: int = 5  # |E|: epochs between new components
+    interval: int = 2  # |E|: epochs between new components (11 a task at 20 epochs: pruning runs)
     samples: int = 1000  # S: agents sampled for the initial prior and the targets
 
 
@@ -46,14 +54,22 @@ class C2INetOnline(Method):
         self.old: GaussianMixture | None = None
         self.sample_scenes = None
         self.queue_sizes: list[int] = []
+        self.pruned: list[int] = []  # components removed after each task
 
     def build_model(self) -> torch.nn.Module:
         return C2INetModel(self.model_config, self.queue_config)
 
     def _current_posterior(self, ctx: TaskContext) -> tuple[torch.Tensor, torch.Tensor]:
-        """Means and log-variances of Q(C|X) for the S samples under the current encoder."""
+        """Q(C|X) of the sampled scenes under the current encoder, one row per agent.
+
+        A C per scene is repeated per agent: scenes weigh by their agents, as S counts agents.
+        """
+        batch = make_batch(ctx.train, self.sample_scenes)
         with torch.no_grad():
-            mean, logvar = ctx.model.posterior_c(make_batch(ctx.train, self.sample_scenes))
+            post = ctx.model.posteriors(batch)
+        mean, logvar = post.c_mean, post.c_logvar
+        if ctx.model.c_per_scene:
+            mean, logvar = mean[batch.scene_of], logvar[batch.scene_of]
         return mean[: self.options.samples], logvar[: self.options.samples]
 
     def _target(
@@ -76,11 +92,12 @@ class C2INetOnline(Method):
         mean, logvar = moment_match(*posteriors)
         t = ctx.index + 1
         if t == 1:
-            queue.reset(mean, logvar)
-        elif self.queue_config.weight_opt:
-            queue.add(mean, logvar, queue.fit_weight(mean, logvar, self._target(ctx, *posteriors)))
-        else:
-            queue.add(mean, logvar, 1 / t)
+            queue.reset(mean, logvar, owner=ctx.index)
+            return
+        weight = 1 / t
+        if self.queue_config.weight_opt:
+            weight = queue.fit_weight(mean, logvar, self._target(ctx, *posteriors))
+        queue.add(mean, logvar, weight, owner=ctx.index)
 
     def after_epoch(self, ctx: TaskContext, epoch: int) -> None:
         if (epoch + 1) % self.options.interval:
@@ -88,14 +105,26 @@ class C2INetOnline(Method):
         queue = ctx.model.queue
         target = self._target(ctx, *self._current_posterior(ctx))
         mean, logvar = queue.fit_component(target)
-        queue.add(mean, logvar, queue.fit_weight(mean, logvar, target))
+        queue.add(mean, logvar, queue.fit_weight(mean, logvar, target), owner=ctx.index)
 
     def after_task(self, ctx: TaskContext) -> None:
-        ctx.model.queue.prune()
-        self.queue_sizes.append(len(ctx.model.queue))
+        queue = ctx.model.queue
+        self.pruned.append(len(queue.prune()))
+        self.queue_sizes.append(len(queue))
+        model = ctx.model
+        if ctx.index in queue.owners:  # pruning may have removed all of a task's components
+            new = make_anchors(model, queue.task_mixture(ctx.index), self.options.anchors)
+            model.anchors = new if model.anchors is None else Anchors.concat([model.anchors, new])
 
     def state_dict(self, model: torch.nn.Module) -> dict[str, Any]:
-        return {"queue": model.queue.state_dict(), "queue_sizes": list(self.queue_sizes)}
+        return {
+            "queue": model.queue.state_dict(),
+            "queue_sizes": list(self.queue_sizes),
+            "pruned": list(self.pruned),
+        }
 
     def summary(self) -> dict[str, Any]:
-        return {"queue_size": self.queue_sizes[-1] if self.queue_sizes else 0}
+        return {
+            "queue_size": self.queue_sizes[-1] if self.queue_sizes else 0,
+            "pruned": self.pruned[-1] if self.pruned else 0,
+        }
