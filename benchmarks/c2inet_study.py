@@ -1,10 +1,12 @@
 """Is C2INet live, and what does it buy? The study of issue 9 as one command.
 
-Runs ``sim.run`` for every (curriculum, method) and every Table 4 switch on the first
-curriculum, each job in its own process with one torch thread (``--jobs`` at once), then prints
-per curriculum: average ADE over seen tasks after the last task at K = 20 and K = 1 (mean and
-std over seeds), both forgetting scores, and the confounder's diagnostics after the last task.
-A finished job (its ``metrics.json`` exists) is read back, not run again.
+Runs ``sim.run`` for every (curriculum, method); on the first curriculum, every Table 4 switch
+and one design variant (one C per scene instead of per agent); and the divergence switch on
+crowd_radius, where forgetting is large. Each job runs in its own process with one torch thread
+(``--jobs`` at once). Then it prints, per curriculum: average ADE
+over seen tasks after the last task at K = 20 and K = 1 (mean and std over seeds), both
+forgetting scores, and the confounder's diagnostics after the last task. A finished job (its
+``metrics.json`` exists) is read back, not run again.
 
     python benchmarks/c2inet_study.py [--out runs/study] [--seeds 3] [--jobs 2] [--quick]
 """
@@ -27,18 +29,23 @@ SWITCHES = {  # Table 4: each part of C2INet switched off in turn
     "no-pruning": ["c2inet-online.pruning=false"],
     "capacity-15": ["c2inet-online.capacity=15"],
     "no-kl": ["model.beta_c=0", "model.beta_z=0"],
+    "c-per-scene": ["model.c_per=scene"],  # a design variant, not in Table 4
+}
+EXTRA = {  # crowd_radius forgets most: there the regularisers have something to prevent
+    ("crowd_radius_0.1..0.6", "no-divergence"): ["c2inet-online.divergence=false"],
 }
 DIAGNOSTICS = ("probe_observed", "probe_context", "probe_c", "mi_xc", "kl_c", "kl_z", "c_effect")
 RECOVERY = ("ari", "nmi", "knob_r2")
 
 
-def jobs(seeds: int, quick: bool) -> list[tuple[str, str, str, list[str]]]:
+def jobs() -> list[tuple[str, str, str, list[str]]]:
     """(folder name, scenario, method, --set values), the longest first."""
     out = [(f"{c}/{m}", c, m, []) for m in METHODS for c in CURRICULA]
     out += [
         (f"{CURRICULA[0]}/ablation-{n}", CURRICULA[0], "c2inet-online", s)
         for n, s in SWITCHES.items()
     ]
+    out += [(f"{c}/ablation-{n}", c, "c2inet-online", s) for (c, n), s in EXTRA.items()]
     return out
 
 
@@ -99,7 +106,7 @@ def main() -> None:
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--quick", action="store_true")
     args = p.parse_args()
-    todo = jobs(args.seeds, args.quick)
+    todo = jobs()
     with ThreadPoolExecutor(args.jobs) as pool:
         for name, seconds in pool.map(lambda j: run(j, args.out, args.seeds, args.quick), todo):
             print(f"{name}: {seconds:.0f} s", flush=True)

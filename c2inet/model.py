@@ -241,24 +241,45 @@ class C2INetModel(Predictor):
         anchors = self.anchors.select(torch.randperm(len(self.anchors))[: q.anchor_batch])
         return anchors, q.distill_decoder, q.distill_encoder
 
+    def _decode(
+        self, batch: Batch, cond: torch.Tensor, anchors: Anchors | None
+    ) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """Future displacements of the batch (12, S, N, 2) and, given anchors, of their latents
+        (12, A, 2): the anchors ride in the batch's own decoder call as extra rows."""
+        last_rel = batch.obs_rel[-1] / batch.scale
+        if anchors is None:
+            return self.backbone.decode(cond, last_rel), None
+        samples, agents = cond.shape[:2]
+        rows = torch.cat([cond.flatten(0, 1), anchors.cond])
+        last = torch.cat([last_rel.repeat(samples, 1), anchors.last_rel])
+        out = self.backbone.decode(rows[None], last)[:, 0]
+        pred = out[:, : samples * agents].unflatten(1, (samples, agents))
+        return pred, out[:, samples * agents :]
+
+    def _held(
+        self, anchors: Anchors, future: torch.Tensor | None, encoder: bool
+    ) -> dict[str, torch.Tensor]:
+        """The BooVAE penalties: the decoder's drift at the anchors (as a negative
+        log-likelihood) and Q(C|X)'s at their pseudo-inputs (symmetric KL)."""
+        held = {}
+        if future is not None:
+            error = ((future - anchors.future) ** 2).sum(dim=(0, 2)).mean()
+            held["distill_decoder"] = error / (2 * self.config.likelihood_std**2)
+        if encoder:  # its own encoder call: padded into the batch, each would take A slots
+            post = self.posteriors(make_batch(anchors.inputs))
+            skl = symmetric_kl(post.c_mean, post.c_logvar, anchors.c_mean, anchors.c_logvar)
+            held["distill_encoder"] = skl.mean()
+        return held
+
     def loss(self, batch: Batch, k_train: int = 1) -> tuple[torch.Tensor, dict[str, float]]:
+        """Eq 10 with the variety loss over ``k_train`` samples, plus the queue's penalties."""
         cfg = self.config
         anchors, hold_decoder, hold_encoder = self._protection()
-        agents = len(batch.scene_of)
         post = self.posteriors(batch)
-        samples = max(k_train, cfg.n_mc)
-        z, c = self.latents(batch, post, samples, "posterior")
+        z, c = self.latents(batch, post, max(k_train, cfg.n_mc), "posterior")
         cond = self.conditions(batch, z, c)
-        last_rel = batch.obs_rel[-1] / batch.scale
-        if hold_decoder:  # the anchors as extra rows of the same decoder call
-            rows = torch.cat([cond[:k_train].flatten(0, 1), anchors.cond])
-            last = torch.cat([last_rel.repeat(k_train, 1), anchors.last_rel])
-            out = self.backbone.decode(rows[None], last)[:, 0]
-            pred, anchor_future = out[:, : k_train * agents], out[:, k_train * agents :]
-            pred = pred.unflatten(1, (k_train, agents))
-        else:
-            pred = self.backbone.decode(cond[:k_train], last_rel)
-        nll = self.nll(batch, pred)
+        pred, anchor_future = self._decode(batch, cond[:k_train], anchors if hold_decoder else None)
+        future = variety_loss(self.nll(batch, pred), batch)
         past_error = (
             self.reconstruct_past(cond[: cfg.n_mc]) - (batch.obs_rel[1:] / batch.scale)[:, None]
         )
@@ -268,7 +289,6 @@ class C2INetModel(Predictor):
         kl_c = self.per_scene(kl_c, batch)  # (B,)
         lz = post.z_logvar
         kl_z = 0.5 * (lz.exp() + post.z_mean**2 - 1 - lz).sum(-1)
-        future = variety_loss(nll, batch)
         per_agent = batch.per_scene_mean(cfg.beta_x * nll_x + cfg.beta_z * kl_z)
         loss = future + per_agent.mean() + cfg.beta_c * kl_c.mean()
         parts = {
@@ -277,17 +297,10 @@ class C2INetModel(Predictor):
             "kl_c": kl_c.mean().item(),
             "kl_z": batch.per_scene_mean(kl_z).mean().item(),
         }
-        weight = self.queue.config.distill_weight
-        if hold_decoder:
-            error = ((anchor_future - anchors.future) ** 2).sum(dim=(0, 2)).mean()
-            held = error / (2 * cfg.likelihood_std**2)
-            loss, parts["distill_decoder"] = loss + weight * held, held.item()
-        if hold_encoder:  # its own encoder call: padded into the batch, each would take A slots
-            held_post = self.posteriors(make_batch(anchors.inputs))
-            held = symmetric_kl(
-                held_post.c_mean, held_post.c_logvar, anchors.c_mean, anchors.c_logvar
-            ).mean()
-            loss, parts["distill_encoder"] = loss + weight * held, held.item()
+        if anchors is not None:
+            for name, held in self._held(anchors, anchor_future, hold_encoder).items():
+                loss = loss + self.queue.config.distill_weight * held
+                parts[name] = held.item()
         return loss, parts
 
     @torch.no_grad()
