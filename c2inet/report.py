@@ -42,11 +42,14 @@ def summarise(
         stack = np.stack([r[key] for r in runs])
         out[key] = _clean(stack.mean(0))
         out[f"{key}_std"] = _clean(stack.std(0))
-    for metric in ("ade", "fde", "ade_k1", "fde_k1"):
+    # other ways the model predicts (C2INet's C from the posterior): suffixes of its metrics
+    out["variants"] = [k.removeprefix("ade_k1_") for k in runs[0] if k.startswith("ade_k1_")]
+    suffixes = ["", *(f"_{v}" for v in out["variants"])]
+    for metric in (f"{m}{s}" for s in suffixes for m in ("ade", "fde", "ade_k1", "fde_k1")):
         seen = np.array([average_seen(r[metric]) for r in runs])
         out[f"avg_seen_{metric}"] = _rounded(seen.mean(0))
         out[f"avg_seen_{metric}_std"] = _rounded(seen.std(0))
-    for metric in ("ade", "ade_k1"):
+    for metric in (f"{m}{s}" for s in suffixes for m in ("ade", "ade_k1")):
         matrices = [r[metric] for r in runs]
         for name, score in (("final", forgetting_final), ("worst", forgetting_worst)):
             per_task, mean = _forgetting(score, matrices)
@@ -69,20 +72,24 @@ def column_labels(labels: list[str]) -> list[str]:
 def table_rows(
     methods: dict[str, dict[str, Any]], labels: list[str], metric: str = "ade"
 ) -> list[list[str]]:
-    """One row per method: ADE/FDE averaged over seen tasks after each task, then forgetting.
+    """One row per method (and per variant, e.g. C2INet with C from the posterior): ADE/FDE
+    averaged over seen tasks after each task, then forgetting.
 
     ``metric`` ``ade`` gives best of K, ``ade_k1`` one sample.
     """
-    fde = metric.replace("ade", "fde")
     header = ["method", *column_labels(labels), "forgetting final", "forgetting worst"]
     rows = [header]
     for name, m in methods.items():
-        cells = [
-            f"{a:.3f}/{f:.3f}"
-            for a, f in zip(m[f"avg_seen_{metric}"], m[f"avg_seen_{fde}"], strict=True)
-        ]
-        final, worst = m[f"forgetting_final_{metric}"], m[f"forgetting_worst_{metric}"]
-        rows.append([name, *cells, f"{final:+.3f}", f"{worst:+.3f}"])
+        for variant in ["", *m.get("variants", [])]:
+            key = f"{metric}_{variant}" if variant else metric
+            fde = key.replace("ade", "fde", 1)
+            cells = [
+                f"{a:.3f}/{f:.3f}"
+                for a, f in zip(m[f"avg_seen_{key}"], m[f"avg_seen_{fde}"], strict=True)
+            ]
+            final, worst = m[f"forgetting_final_{key}"], m[f"forgetting_worst_{key}"]
+            label = f"{name}, {variant.replace('_', ' from ', 1)}" if variant else name
+            rows.append([label, *cells, f"{final:+.3f}", f"{worst:+.3f}"])
     return rows
 
 
@@ -164,6 +171,9 @@ def markdown_report(
         "error minus the best earlier one (Chaudhry et al. 2018), *worst* the worst error after "
         "leaving a task minus the error right after training it.",
         "",
+        "C2INet draws C from its prior queue at test time, one per scene (the back-door average "
+        "of Eq 16); its row *c from posterior* draws C from Q(C|X) instead.",
+        "",
         f"Best of K = {k}, the minimum taken per scene (joint):",
         "",
         markdown_table(table_rows(methods, labels, "ade")),
@@ -184,10 +194,12 @@ def markdown_report(
                 rows.append([labels[i], *("-" if v is None else f"{v:.3f}" for v in row)])
             parts += [f"{title}:", "", markdown_table(rows), ""]
         if m.get("diagnostics"):
+            bound = m["diagnostics"][-1].get("mi_bound")
+            mi = f"; MI in nats, at most {bound:.2f}" if bound is not None else ""
             parts += [
                 "Diagnostics after each task, on the test splits of the tasks seen so far (probes: "
-                "cross-validated task-id accuracy of a linear probe; MI in nats, at most "
-                f"{m['diagnostics'][-1].get('mi_bound', '?')}):",
+                "cross-validated task-id accuracy of a linear probe, from observed features, "
+                f"the backbone's context and, for C2INet, C's posterior mean{mi}):",
                 "",
                 diagnostics_table(m["diagnostics"], labels),
                 "",

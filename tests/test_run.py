@@ -30,6 +30,7 @@ def test_quick_run_writes_every_output(tmp_path):
     )
     assert result.returncode == 0, result.stderr
     assert "0.1" in result.stdout and ":0.3" in result.stdout and "c2inet-online" in result.stdout
+    assert "c2inet-online, c from posterior" in result.stdout  # the other source of C, beside
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["scenario"] == "crowd_noise_0.1..0.3" and metrics["k"] == 5
     assert metrics["tasks"] == ["crowd_noise_0.1", "crowd_noise_0.2", "crowd_noise_0.3"]
