@@ -12,6 +12,7 @@ from c2inet.metrics import (
     forgetting_final,
     forgetting_worst,
 )
+from c2inet.report import summarise, summarise_diagnostics, table_rows
 
 
 def test_displacement_errors_by_hand():
@@ -53,3 +54,25 @@ def test_continual_scores_by_hand():
     np.testing.assert_allclose(forgetting_final(r), [1.5 - 1.0, 3.0 - 1.0])
     assert backward_transfer(r) == pytest.approx(((1.5 - 1.0) + (3.0 - 1.0)) / 2)
     assert backward_transfer(r[:1, :1]) == 0.0
+
+
+def test_summary_averages_seeds_and_names_each_variant():
+    first = {m: np.array([[1.0, 3.0], [2.0, 1.0]]) for m in ("ade", "fde", "ade_k1", "fde_k1")}
+    second = {m: v + 1.0 for m, v in first.items()}
+    for run in (first, second):
+        run.update({f"{m}_c_posterior": run[m] / 2 for m in ("ade", "fde", "ade_k1", "fde_k1")})
+    out = summarise([first, second], [[{}, {}], [{}, {}]])
+    assert out["variants"] == ["c_posterior"]
+    assert out["avg_seen_ade"] == [1.5, 2.0] and out["avg_seen_ade_std"] == [0.5, 0.5]
+    assert out["avg_seen_ade_c_posterior"] == [0.75, 1.0]
+    assert out["forgetting_final_ade"] == 1.0 and out["forgetting_final_ade_c_posterior"] == 0.5
+    rows = table_rows({"m": out}, ["a", "b"])
+    assert [r[0] for r in rows[1:]] == ["m", "m, c from posterior"]
+
+
+def test_diagnostics_average_over_seeds_and_keep_the_first_queue():
+    seed0 = [{"mi_xc": 1.0, "kl_c": [1.0, 3.0], "probe_c": None, "queue": {"size": 3}}]
+    seed1 = [{"mi_xc": 2.0, "kl_c": [2.0, 5.0], "probe_c": None, "queue": {"size": 4}}]
+    (merged,) = summarise_diagnostics([seed0, seed1])
+    assert merged["mi_xc"] == 1.5 and merged["kl_c"] == [1.5, 4.0]
+    assert merged["probe_c"] is None and merged["queue"] == {"size": 3}

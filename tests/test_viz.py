@@ -82,6 +82,11 @@ def test_recording_holds_scenes_rollouts_curves_and_queue(recorded):
     assert rows["/curves/finetune/matrix/ade/crowd_noise_0.2"] == 2
     assert rows["/curves/c2inet-online/kl_c"] == 4
     assert rows["/queue/c2inet-online/components"] == 2
+    # the confounder's diagnostics, one row per task; the baselines' have no C part
+    assert rows["/diagnostics/c2inet-online/mi_xc"] == 2
+    assert rows["/diagnostics/c2inet-online/c_effect"] == 2
+    assert rows["/diagnostics/finetune/probe_context"] == 1  # None after the first task
+    assert "/diagnostics/finetune/mi_xc" not in rows
     assert rows["/run_card"] == 1
     assert not any("/cv/" in path and "val_ade" in path for path in rows)  # cv does not train
 
