@@ -25,7 +25,7 @@ from sklearn.preprocessing import StandardScaler
 
 from c2inet.batch import make_batch
 from c2inet.data import Windows
-from c2inet.prior import gaussian_log_prob
+from c2inet.prior import gaussian_log_prob, gaussian_sample, kl_standard_normal
 
 PROBE_FOLDS = 4
 MI_INPUTS = 2000  # inputs of the MI estimate (its cost grows with their square)
@@ -90,7 +90,7 @@ def mutual_information(mean: torch.Tensor, logvar: torch.Tensor, samples: int = 
 
     Over n inputs it is at most log n: read it against that bound.
     """
-    c = mean + (0.5 * logvar).exp() * torch.randn(samples, *mean.shape)  # (S, n, d)
+    c = gaussian_sample(mean, logvar, torch.randn(samples, *mean.shape))  # (S, n, d)
     own = gaussian_log_prob(c, mean, logvar)  # (S, n)
     cross = gaussian_log_prob(c[:, :, None], mean[None, None], logvar[None, None])  # (S, n, n)
     aggregate = torch.logsumexp(cross, dim=-1) - math.log(len(mean))
@@ -136,28 +136,27 @@ def _confounder(model, batches, labels, values, seed) -> dict[str, Any]:
     out: dict[str, Any] = {"kl_c": [], "kl_z": [], "ade_c_mean": [], "ade_c_prior": []}
     shifts = []
     for batch, post in zip(batches, posts, strict=True):
-        c = post.c_mean + (0.5 * post.c_logvar).exp() * torch.randn(cfg.n_mc, *post.c_mean.shape)
+        c = gaussian_sample(post.c_mean, post.c_logvar, torch.randn(cfg.n_mc, *post.c_mean.shape))
         kl_c = (gaussian_log_prob(c, post.c_mean, post.c_logvar) - queue.log_prob(c)).mean(0)
-        lz = post.z_logvar
-        kl_z = 0.5 * (lz.exp() + post.z_mean**2 - 1 - lz).sum(-1)
+        kl_z = kl_standard_normal(post.z_mean, post.z_logvar)
         out["kl_c"].append(_rounded(model.per_scene(kl_c, batch).mean()))
         out["kl_z"].append(_rounded(batch.per_scene_mean(kl_z).mean()))
-        at_mean = model.predict(batch, 1, c_source="posterior_mean", z_mean=True)[0]
-        at_prior = model.predict(batch, 1, c_source="prior", z_mean=True)[0]
+        at_mean = model.predict(batch, 1, "posterior_mean", z_mean=True, post=post)[0]
+        at_prior = model.predict(batch, 1, "prior", z_mean=True, post=post)[0]
         for key, pred in (("ade_c_mean", at_mean), ("ade_c_prior", at_prior)):
             out[key].append(_rounded((pred - batch.fut).norm(dim=-1).mean()))
         shifts.append((at_mean - at_prior).norm(dim=-1).mean(0))
     out["c_effect"] = _rounded(torch.cat(shifts).mean())  # metres the prediction moves with C
     counts = np.concatenate([b.agent_counts.numpy() for b in batches])
     if not model.c_per_scene:  # one C per agent: pool it per scene for the probe
-        scene_mean = torch.cat([b.pool(p.c_mean) for b, p in zip(batches, posts, strict=True)])
+        c_scene = torch.cat([b.pool(p.c_mean) for b, p in zip(batches, posts, strict=True)])
         c_labels = np.repeat(labels, counts)
     else:
-        scene_mean, c_labels = c_mean, labels
+        c_scene, c_labels = c_mean, labels
     subset = torch.randperm(len(c_mean))[:MI_INPUTS]
     out["mi_xc"] = _rounded(mutual_information(c_mean[subset], c_logvar[subset]))
     out["mi_bound"] = _rounded(math.log(len(subset)))
-    out["probe_c"] = _rounded(probe_accuracy(scene_mean.numpy(), labels, seed))
+    out["probe_c"] = _rounded(probe_accuracy(c_scene.numpy(), labels, seed))
     mixture = queue.mixture
     per = gaussian_log_prob(c_mean[:, None], mixture.means, mixture.logvars)
     responsibility = torch.softmax(per + mixture.weights.clamp_min(1e-30).log(), dim=-1)
@@ -185,5 +184,5 @@ def _confounder(model, batches, labels, values, seed) -> dict[str, Any]:
         out["nmi"] = _rounded(normalized_mutual_info_score(domain, component))
     if all(v is not None for v in values):
         knob = np.array([values[i] for i in labels], dtype=np.float64)
-        out["knob_r2"] = _rounded(knob_r2(scene_mean.numpy(), knob, seed))
+        out["knob_r2"] = _rounded(knob_r2(c_scene.numpy(), knob, seed))
     return out

@@ -15,9 +15,6 @@ def displacement_errors(pred: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray
     return distance.mean(axis=1), distance[:, -1]
 
 
-METRICS = ("ade", "fde", "ade_agent", "fde_agent", "ade_k1", "fde_k1", "endpoint_spread")
-
-
 def best_sample(errors: np.ndarray, scene_start: np.ndarray, mode: str) -> np.ndarray:
     """Index of the chosen sample for every agent; errors (K, N) -> (N,).
 

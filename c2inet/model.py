@@ -1,9 +1,9 @@
 """Trajectory predictors: a backbone whose decoder is conditioned on a vector with a random part.
 
 The plain predictor conditions its decoder on the encoder's context and noise drawn from
-N(0, I) (the baselines). :class:`C2INetModel` conditions it on two latents alone: Z per agent
-(invariant) and the confounder C per scene (variant), so all it knows of the past passes through
-them (the bottleneck of GCRL); C is scored against the prior queue. Displacements are divided by
+N(0, I) (the baselines). :class:`C2INetModel` conditions it on two latents alone, Z (invariant)
+and the confounder C (variant), so all it knows of the past passes through them (the bottleneck
+of GCRL); C is scored against the prior queue. Displacements are divided by
 each scene's own motion scale (``Batch.scale``, from observed frames only) and predictions
 multiplied back, so pedestrians and vehicles alike reach the network at unit size.
 """
@@ -19,7 +19,15 @@ from torch import nn
 from c2inet.backbones import BACKBONES
 from c2inet.batch import Batch, make_batch, variety_loss
 from c2inet.data import OBS_LEN, Windows
-from c2inet.prior import GaussianMixture, PriorQueue, QueueConfig, gaussian_log_prob, symmetric_kl
+from c2inet.prior import (
+    GaussianMixture,
+    PriorQueue,
+    QueueConfig,
+    gaussian_log_prob,
+    gaussian_sample,
+    kl_standard_normal,
+    symmetric_kl,
+)
 
 C_SOURCES = ("prior", "posterior", "posterior_mean")
 
@@ -75,7 +83,7 @@ class Predictor(nn.Module):
         """Normalised future displacements (12, S, N, 2) from conditions (S, N, D)."""
         return self.backbone.decode(cond, batch.obs_rel[-1] / batch.scale)
 
-    def _conditions(self, context: torch.Tensor, samples: int) -> torch.Tensor:
+    def _context_with_noise(self, context: torch.Tensor, samples: int) -> torch.Tensor:
         noise = torch.randn(samples, context.shape[0], self.config.latent_dim)
         return torch.cat([context.expand(samples, *context.shape), noise], -1)
 
@@ -86,14 +94,14 @@ class Predictor(nn.Module):
 
     def loss(self, batch: Batch, k_train: int = 1) -> tuple[torch.Tensor, dict[str, float]]:
         """The training loss; with ``k_train`` > 1 the variety loss over that many samples."""
-        cond = self._conditions(self.context(batch), k_train)
+        cond = self._context_with_noise(self.context(batch), k_train)
         loss = variety_loss(self.nll(batch, self.decode(batch, cond)), batch)
         return loss, {"nll": loss.item()}
 
     @torch.no_grad()
     def predict(self, batch: Batch, samples: int) -> torch.Tensor:
         """K sampled futures as absolute positions in metres, (K, 12, N, 2)."""
-        cond = self._conditions(self.context(batch), samples)
+        cond = self._context_with_noise(self.context(batch), samples)
         return _positions(batch, self.decode(batch, cond))
 
     def evaluation_variants(self) -> dict[str, dict]:
@@ -206,15 +214,16 @@ class C2INetModel(Predictor):
         """
         mz, lz, mc, lc = post.z_mean, post.z_logvar, post.c_mean, post.c_logvar
         scenes, scene_of = batch.num_scenes, batch.scene_of
-        z = mz.expand(samples, *mz.shape)
-        if not z_mean:
-            z = z + (0.5 * lz).exp() * torch.randn(samples, *mz.shape)
+        if z_mean:
+            z = mz.expand(samples, *mz.shape)
+        else:
+            z = gaussian_sample(mz, lz, torch.randn(samples, *mz.shape))
         if c_source == "prior":  # the back-door average over P(C), Eq 16: one C per scene
             c = self.queue.mixture.sample(samples * scenes).view(samples, scenes, -1)
             if not self.c_per_scene:
                 c = c[:, scene_of]
         elif c_source == "posterior":
-            c = mc + (0.5 * lc).exp() * torch.randn(samples, *mc.shape)
+            c = gaussian_sample(mc, lc, torch.randn(samples, *mc.shape))
         elif c_source == "posterior_mean":
             c = mc.expand(samples, *mc.shape)
         else:
@@ -287,8 +296,7 @@ class C2INetModel(Predictor):
         log_q = gaussian_log_prob(c[: cfg.n_mc], post.c_mean, post.c_logvar)
         kl_c = (log_q - self.queue.training_prior().log_prob(c[: cfg.n_mc])).mean(0)
         kl_c = self.per_scene(kl_c, batch)  # (B,)
-        lz = post.z_logvar
-        kl_z = 0.5 * (lz.exp() + post.z_mean**2 - 1 - lz).sum(-1)
+        kl_z = kl_standard_normal(post.z_mean, post.z_logvar)
         per_agent = batch.per_scene_mean(cfg.beta_x * nll_x + cfg.beta_z * kl_z)
         loss = future + per_agent.mean() + cfg.beta_c * kl_c.mean()
         parts = {
@@ -305,11 +313,19 @@ class C2INetModel(Predictor):
 
     @torch.no_grad()
     def predict(
-        self, batch: Batch, samples: int, c_source: str | None = None, z_mean: bool = False
+        self,
+        batch: Batch,
+        samples: int,
+        c_source: str | None = None,
+        z_mean: bool = False,
+        post: Posteriors | None = None,
     ) -> torch.Tensor:
-        """K sampled futures in metres (K, 12, N, 2); C from ``c_source`` (default: config)."""
-        source = c_source or self.config.c_source
-        z, c = self.latents(batch, self.posteriors(batch), samples, source, z_mean)
+        """K sampled futures in metres (K, 12, N, 2); C from ``c_source`` (default: config).
+
+        ``post``: the batch's posteriors, when the caller has them already.
+        """
+        post = self.posteriors(batch) if post is None else post
+        z, c = self.latents(batch, post, samples, c_source or self.config.c_source, z_mean)
         return _positions(batch, self.decode(batch, self.conditions(batch, z, c)))
 
     def evaluation_variants(self) -> dict[str, dict]:

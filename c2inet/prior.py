@@ -25,6 +25,11 @@ def gaussian_sample(mean: torch.Tensor, logvar: torch.Tensor, noise: torch.Tenso
     return mean + (0.5 * logvar).exp() * noise
 
 
+def kl_standard_normal(mean: torch.Tensor, logvar: torch.Tensor) -> torch.Tensor:
+    """KL(N(mean, e^logvar) || N(0, I)), summed over the last axis."""
+    return 0.5 * (logvar.exp() + mean**2 - 1 - logvar).sum(-1)
+
+
 def gaussian_kl(m1, lv1, m2, lv2) -> torch.Tensor:
     """KL(N(m1, e^lv1) || N(m2, e^lv2)) for diagonal Gaussians, summed over the last axis."""
     return 0.5 * (lv2 - lv1 + (lv1.exp() + (m1 - m2) ** 2) / lv2.exp() - 1).sum(-1)

@@ -296,7 +296,7 @@ def main(argv: list[str] | None = None) -> int:
     }
     write_text_atomic(out / "metrics.json", json.dumps(metrics, indent=1) + "\n")
     for name, result in results.items():
-        for key in (m for m in result if m in runs[name][0].matrices):
+        for key in runs[name][0].matrices:
             write_text_atomic(
                 out / "matrices" / f"{name}_{key}.csv", matrix_csv(result[key], task_names)
             )

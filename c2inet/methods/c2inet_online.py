@@ -108,10 +108,10 @@ class C2INetOnline(Method):
         queue.add(mean, logvar, queue.fit_weight(mean, logvar, target), owner=ctx.index)
 
     def after_task(self, ctx: TaskContext) -> None:
-        queue = ctx.model.queue
+        model = ctx.model
+        queue = model.queue
         self.pruned.append(len(queue.prune()))
         self.queue_sizes.append(len(queue))
-        model = ctx.model
         if ctx.index in queue.owners:  # pruning may have removed all of a task's components
             new = make_anchors(model, queue.task_mixture(ctx.index), self.options.anchors)
             model.anchors = new if model.anchors is None else Anchors.concat([model.anchors, new])
