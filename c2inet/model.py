@@ -58,6 +58,8 @@ class ModelConfig:
             raise ValueError(f"c_source {self.c_source!r}: expected prior or posterior")
         if self.c_per not in ("agent", "scene"):
             raise ValueError(f"c_per {self.c_per!r}: expected agent or scene")
+        if self.beta_x < 0:
+            raise ValueError(f"beta_x must be at least 0, got {self.beta_x}")
 
 
 def _positions(batch: Batch, rel: torch.Tensor) -> torch.Tensor:

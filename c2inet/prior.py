@@ -121,6 +121,13 @@ class QueueConfig:
     fit_lr: float = 3e-2
     target_samples: int = 1000
 
+    def __post_init__(self):
+        for name in ("anchors", "anchor_batch"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
+        if self.distill_weight < 0:
+            raise ValueError(f"distill_weight must be at least 0, got {self.distill_weight}")
+
 
 class PriorQueue:
     """The memory queue of prior components, with the online C2INet update rules.

@@ -52,6 +52,10 @@ class TrainConfig:
     val_every: int = 1  # epochs between validation curves (0: never)
     diagnostics: bool = True  # measure the confounder's diagnostics after each task
 
+    def __post_init__(self):
+        if self.k_train < 1:
+            raise ValueError(f"k_train must be at least 1, got {self.k_train}")
+
 
 @dataclass
 class Result:

@@ -306,7 +306,7 @@ def main(argv: list[str] | None = None) -> int:
         "seeds": args.seeds,
         "methods": methods,
         "quick": args.quick,
-        "threads": args.threads,
+        "threads": torch.get_num_threads(),  # what torch uses, not only what was asked
         "model": asdict(model_config),
         "train": asdict(train_config),
         "settings": settings,

@@ -136,6 +136,16 @@ def test_seeds_give_mean_and_std(tmp_path):
         (["--scenario", "crowd_noise_0.1", "--threads", "0"], "--threads: 0 is not between 1"),
         (["--scenario", "crowd_noise_0.1", "--set", "model.c_per=cell"], "expected agent or"),
         (["--scenario", "crowd_noise_0.1", "--set", "model.c_source=mean"], "expected prior or"),
+        (["--scenario", "crowd_noise_0.1", "--set", "train.k_train=0"], "k_train must be at least"),
+        (["--scenario", "crowd_noise_0.1", "--set", "model.beta_x=-1"], "beta_x must be at least"),
+        (
+            ["--scenario", "crowd_noise_0.1", "--set", "c2inet-online.anchor_batch=0"],
+            "anchor_batch must be at least 1",
+        ),
+        (
+            ["--scenario", "crowd_noise_0.1", "--set", "c2inet-online.distill_weight=-1"],
+            "distill_weight must be at least 0",
+        ),
     ],
 )
 def test_bad_options_give_one_error_line(args, message):
