@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import torch
 
 OBS_LEN = 8
 PRED_LEN = 12
@@ -65,4 +66,18 @@ class Windows:
             np.concatenate([p.positions for p in parts]),
             np.concatenate([*starts, [total]]).astype(np.int64),
             parts[0].obs_len,
+        )
+
+    def state_dict(self) -> dict[str, torch.Tensor | int]:
+        """Tensors and plain values only, for checkpoints read with ``weights_only=True``."""
+        return {
+            "positions": torch.from_numpy(self.positions.copy()),
+            "scene_start": torch.from_numpy(self.scene_start.copy()),
+            "obs_len": self.obs_len,
+        }
+
+    @staticmethod
+    def from_state(state: dict[str, torch.Tensor | int]) -> Windows:
+        return Windows(
+            state["positions"].numpy(), state["scene_start"].numpy(), int(state["obs_len"])
         )

@@ -63,12 +63,19 @@ def observed_features(windows: Windows) -> np.ndarray:
     return np.nan_to_num(features, nan=-1.0, posinf=-1.0)
 
 
-def probe_accuracy(features: np.ndarray, labels: np.ndarray, seed: int = 0) -> float | None:
-    """Cross-validated accuracy of a linear (logistic) probe; None with fewer than 2 classes."""
+def _folds(labels: np.ndarray, seed: int) -> StratifiedKFold | None:
+    """Stratified folds, as many as the rarest class allows (None below 2 classes or 2 each)."""
     classes, counts = np.unique(labels, return_counts=True)
-    if len(classes) < 2:
+    if len(classes) < 2 or counts.min() < 2:
         return None
-    folds = StratifiedKFold(min(PROBE_FOLDS, counts.min()), shuffle=True, random_state=seed)
+    return StratifiedKFold(min(PROBE_FOLDS, counts.min()), shuffle=True, random_state=seed)
+
+
+def probe_accuracy(features: np.ndarray, labels: np.ndarray, seed: int = 0) -> float | None:
+    """Cross-validated accuracy of a linear (logistic) probe; None without 2 classes of 2 samples."""
+    folds = _folds(labels, seed)
+    if folds is None:
+        return None
     probe = make_pipeline(StandardScaler(), LogisticRegression(max_iter=1000))
     predicted = cross_val_predict(probe, features, labels, cv=folds)
     return float((predicted == labels).mean())
@@ -76,11 +83,11 @@ def probe_accuracy(features: np.ndarray, labels: np.ndarray, seed: int = 0) -> f
 
 def knob_r2(features: np.ndarray, values: np.ndarray, seed: int = 0) -> float | None:
     """Cross-validated R^2 of a linear (ridge) regression of the knob value on the features."""
-    if len(np.unique(values)) < 2:
-        return None
-    folds = StratifiedKFold(PROBE_FOLDS, shuffle=True, random_state=seed)
-    model = make_pipeline(StandardScaler(), Ridge(alpha=1.0))
     labels = np.unique(values, return_inverse=True)[1]
+    folds = _folds(labels, seed)
+    if folds is None:
+        return None
+    model = make_pipeline(StandardScaler(), Ridge(alpha=1.0))
     predicted = cross_val_predict(model, features, values, cv=folds.split(features, labels))
     return float(r2_score(values, predicted))
 

@@ -10,7 +10,8 @@ multiplied back, so pedestrians and vehicles alike reach the network at unit siz
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
+from typing import Any
 
 import numpy as np
 import torch
@@ -164,6 +165,15 @@ class Anchors:
             self.c_mean[index],
             self.c_logvar[index],
         )
+
+    def state_dict(self) -> dict[str, Any]:
+        """Tensors and plain values only, for checkpoints (resume)."""
+        state = {f.name: getattr(self, f.name) for f in fields(self)}
+        return {**state, "inputs": self.inputs.state_dict()}
+
+    @staticmethod
+    def from_state(state: dict[str, Any]) -> Anchors:
+        return Anchors(**{**state, "inputs": Windows.from_state(state["inputs"])})
 
     @staticmethod
     def concat(parts: list[Anchors]) -> Anchors:

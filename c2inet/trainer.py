@@ -7,7 +7,6 @@ except by methods that declare ``sees_old_tasks`` (the joint reference).
 
 from __future__ import annotations
 
-import os
 import zlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -20,6 +19,7 @@ import torch
 from c2inet.batch import batches
 from c2inet.data import Windows
 from c2inet.diagnostics import diagnose
+from c2inet.files import write_atomic
 from c2inet.methods.base import Method, TaskContext
 from c2inet.metrics import evaluate_predictions
 
@@ -149,7 +149,9 @@ class ContinualTrainer:
         for observer in self.observers:
             observer(event, data)
 
-    def run(self) -> Result:
+    def run(self, resume: bool = False) -> Result:
+        """Train through every task; with ``resume``, continue after the last task checkpoint
+        in ``checkpoint_dir``, giving exactly the result of an uninterrupted run."""
         cfg, method = self.config, self.method
         torch.manual_seed(cfg.seed)
         rng = _generator(cfg.seed, method.name)
@@ -157,7 +159,9 @@ class ContinualTrainer:
         optimiser = torch.optim.Adam(model.parameters(), lr=cfg.lr) if method.trains else None
         n = len(self.tasks)
         result = Result([t.name for t in self.tasks], {})
-        for i, task in enumerate(self.tasks):
+        start = self._replay(model, optimiser, rng, result) if resume else 0
+        for i in range(start, n):
+            task = self.tasks[i]
             seen = [t.train for t in self.tasks[:i]] if method.sees_old_tasks else []
             ctx = TaskContext(i, task.name, task.train, model, optimiser, rng, seen)
             if method.trains:
@@ -174,20 +178,59 @@ class ContinualTrainer:
                         model, [t.test for t in seen_tasks], [t.value for t in seen_tasks], cfg.seed
                     )
                 )
-            self._notify(
-                "task_end",
-                {
-                    "task": i,
-                    "name": task.name,
-                    "row": {m: result.matrices[m][i].tolist() for m in result.matrices},
-                    "model": model,
-                    "diagnostics": result.diagnostics[-1] if cfg.diagnostics else {},
-                },
-            )
-            if self.checkpoint_dir is not None and method.trains:
-                self._save(model, optimiser, rng, i)
+            if self.checkpoint_dir is not None:
+                self._save(model, optimiser, rng, i, result)
+            self._task_end(i, model, result)
         result.history = self.history
         return result
+
+    def _task_end(self, i: int, model: torch.nn.Module, result: Result) -> None:
+        self._notify(
+            "task_end",
+            {
+                "task": i,
+                "name": self.tasks[i].name,
+                "row": {m: result.matrices[m][i].tolist() for m in result.matrices},
+                "model": model,
+                "diagnostics": result.diagnostics[i] if result.diagnostics else {},
+            },
+        )
+
+    def checkpoints(self) -> list[Path]:
+        """The task checkpoints in ``checkpoint_dir``: task 0, 1, ... up to the first gap."""
+        found = []
+        while self.checkpoint_dir is not None:
+            path = self.checkpoint_dir / f"task_{len(found):02d}.pt"
+            if not path.exists():
+                break
+            found.append(path)
+        return found[: len(self.tasks)]
+
+    def _replay(self, model, optimiser, rng: np.random.Generator, result: Result) -> int:
+        """Restore the state after the last finished task and return the next task's index.
+
+        Each finished task's events are sent again, with the model and method state of its own
+        checkpoint, so observers (the recording) see what an uninterrupted run shows.
+        """
+        paths = self.checkpoints()
+        for path in paths:
+            state = load_checkpoint(path)
+            model.load_state_dict(state["model"])
+            self.method.load_state_dict(state["method"], model)
+            i = state["task"]
+            result.matrices = {m: v.numpy().copy() for m, v in state["matrices"].items()}
+            result.summaries, result.diagnostics = state["summaries"], state["diagnostics"]
+            for record in state["history"]:
+                if record["task"] == i:
+                    self.history.append(record)
+                    self._notify("epoch_end", record)
+            self._task_end(i, model, result)
+        if paths:
+            if optimiser is not None:
+                optimiser.load_state_dict(state["optimiser"])
+            torch.set_rng_state(state["torch_rng"])
+            rng.bit_generator.state = state["numpy_rng"]
+        return len(paths)
 
     def _train_task(self, ctx: TaskContext) -> None:
         cfg, method, model = self.config, self.method, ctx.model
@@ -227,21 +270,23 @@ class ContinualTrainer:
             self._notify("epoch_end", record)
         method.after_task(ctx)
 
-    def _save(self, model, optimiser, rng: np.random.Generator, index: int) -> None:
-        """Model, optimiser, method state (e.g. the queue) and RNG states after task ``index``."""
+    def _save(self, model, optimiser, rng: np.random.Generator, index: int, result: Result):
+        """All a resumed run needs after task ``index``: model, optimiser, method state (e.g. the
+        queue), RNG states, and the matrices, summaries, diagnostics and history so far."""
         state = {
             "task": index,
             "model": model.state_dict(),
-            "optimiser": optimiser.state_dict(),
+            "optimiser": None if optimiser is None else optimiser.state_dict(),
             "method": self.method.state_dict(model),
             "torch_rng": torch.get_rng_state(),
             "numpy_rng": rng.bit_generator.state,
+            "matrices": {m: torch.from_numpy(v.copy()) for m, v in result.matrices.items()},
+            "summaries": list(result.summaries),
+            "diagnostics": list(result.diagnostics),
+            "history": list(self.history),
         }
         path = self.checkpoint_dir / f"task_{index:02d}.pt"
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".pt.tmp")
-        torch.save(state, tmp)
-        os.replace(tmp, path)
+        write_atomic(path, lambda tmp: torch.save(state, tmp))
 
 
 def load_checkpoint(path: Path) -> dict[str, Any]:

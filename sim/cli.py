@@ -1,24 +1,12 @@
-"""What the entry points share: the error guard and the scenario options."""
+"""What `sim`'s entry points share: the scenario options, workers and threads."""
 
 from __future__ import annotations
 
 import argparse
 import os
-import sys
-from collections.abc import Callable
 from pathlib import Path
 
-from sim.errors import InputError
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str):  # one line, exit 2, like every other input error
-        raise InputError(f"{self.prog}: {message}")
-
-
-def plain_parser(prog: str, description: str) -> argparse.ArgumentParser:
-    """An argument parser whose errors are one ``InputError`` line (see :func:`guarded`)."""
-    return _Parser(prog=prog, description=description)
+from viz.cli import bounded_int, plain_parser
 
 
 def parser(prog: str, description: str) -> argparse.ArgumentParser:
@@ -34,21 +22,6 @@ def parser(prog: str, description: str) -> argparse.ArgumentParser:
         help="extra folder of family TOML files (repeatable)",
     )
     return p
-
-
-def bounded_int(low: int, high: int) -> Callable[[str], int]:
-    """An argparse ``type``: an integer in [low, high], else a one-line usage error."""
-
-    def convert(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-        if not low <= value <= high:
-            raise argparse.ArgumentTypeError(f"{value} is not between {low} and {high}")
-        return value
-
-    return convert
 
 
 def add_workers(p: argparse.ArgumentParser) -> None:
@@ -70,16 +43,3 @@ def add_threads(p: argparse.ArgumentParser) -> None:
         default=1,
         help="torch intra-op threads (default 1; more only helps an otherwise idle machine)",
     )
-
-
-def guarded(main: Callable[[list[str] | None], int]) -> Callable[[list[str] | None], int]:
-    """Run ``main``; bad input becomes one ``error:`` line on stderr and exit code 2."""
-
-    def run(argv: list[str] | None = None) -> int:
-        try:
-            return main(argv)
-        except InputError as error:
-            print(f"error: {error}", file=sys.stderr)
-            return 2
-
-    return run

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from sim.errors import InputError
+from c2inet.errors import InputError
 from sim.generators import get_generator
 from sim.options import build
 

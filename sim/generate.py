@@ -12,11 +12,13 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from sim.cli import add_workers, guarded, parser
+from c2inet.files import write_text_atomic
+from sim.cli import add_workers, parser
 from sim.data import SPLITS, Domain
 from sim.domains import build_domain
-from sim.io import write_ethucy, write_npz, write_parquet, write_text_atomic
+from sim.io import write_ethucy, write_npz, write_parquet
 from sim.scenario import parse_scenario
+from viz.cli import guarded
 
 STAT_COLUMNS = ("mean_speed", "min_separation", "heading_change", "density", "overlaps")
 

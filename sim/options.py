@@ -8,7 +8,7 @@ import types
 import typing
 from typing import Any, TypeVar
 
-from sim.errors import InputError
+from c2inet.errors import InputError
 
 T = TypeVar("T")
 

@@ -24,6 +24,8 @@ import torch
 from tqdm import tqdm
 
 from c2inet.backbones import BACKBONES
+from c2inet.errors import InputError
+from c2inet.files import write_text_atomic
 from c2inet.methods.base import build_options, get_method
 from c2inet.model import ModelConfig
 from c2inet.report import (
@@ -37,11 +39,9 @@ from c2inet.trainer import ContinualTrainer, Task, TrainConfig
 from sim.cli import add_threads, add_workers, bounded_int, guarded, parser
 from sim.data import SPLITS, cut_windows, window_members
 from sim.domains import build_domain, rollout_scene
-from sim.errors import InputError
 from sim.families import Splits
 from sim.generate import domain_summary
 from sim.generators import get_generator
-from sim.io import write_text_atomic
 from sim.scenario import DomainSpec, parse_scenario
 from viz import figures
 from viz.observer import RecordingObserver, Showcase, log_truth

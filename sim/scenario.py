@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from decimal import Decimal, InvalidOperation
 from pathlib import Path
 
-from sim.errors import InputError
+from c2inet.errors import InputError
 from sim.families import Family, available_families, load_family
 
 MAX_DOMAINS = 64

@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from c2inet.data import Windows  # noqa: E402
-from sim.io import write_atomic  # noqa: E402
+from c2inet.files import write_atomic  # noqa: E402
 
 
 def _save(fig, path: Path) -> Path:

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.cli import guarded, plain_parser
-from sim.errors import InputError
+from c2inet.errors import InputError
+from viz.cli import guarded, plain_parser
 from viz.serve import command, free_port, launch, stop, wait_for_port
 
 MIN_COLOURS = 500  # a blank page has under 10, the loading screen a few dozen

@@ -16,8 +16,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from sim.cli import bounded_int, guarded, plain_parser
-from sim.errors import InputError
+from c2inet.errors import InputError
+from viz.cli import bounded_int, guarded, plain_parser
 
 
 def free_port() -> int:

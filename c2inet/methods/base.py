@@ -2,7 +2,8 @@
 
 Hooks, in the order the trainer calls them (Avalanche-style): ``before_task``,
 ``training_windows``, ``extra_loss`` (every step), ``after_epoch``, ``after_task``. A method
-says in its docstring which hooks it uses. Methods register by ``name``.
+says in its docstring which hooks it uses. What it keeps between tasks goes through
+``state_dict`` / ``load_state_dict``, so a run resumes exactly. Methods register by ``name``.
 """
 
 from __future__ import annotations
@@ -94,8 +95,14 @@ class Method:
         pass
 
     def state_dict(self, model: torch.nn.Module) -> dict[str, Any]:
-        """Method state saved with each task checkpoint (tensors and plain values only)."""
+        """All the method keeps between tasks (tensors and plain values only), saved with each
+        task checkpoint; with the model's own state it is what a resumed run continues from."""
         return {}
+
+    def load_state_dict(self, state: dict[str, Any], model: torch.nn.Module) -> None:
+        """Restore what :meth:`state_dict` returned, into this method and ``model``."""
+        if state:
+            raise ValueError(f"method {self.name!r} keeps no state, got {sorted(state)}")
 
     def summary(self) -> dict[str, Any]:
         """Extra per-task figures for the report (e.g. the queue size)."""

@@ -121,7 +121,14 @@ class C2INetOnline(Method):
             "queue": model.queue.state_dict(),
             "queue_sizes": list(self.queue_sizes),
             "pruned": list(self.pruned),
+            "anchors": None if model.anchors is None else model.anchors.state_dict(),
         }
+
+    def load_state_dict(self, state: dict[str, Any], model: torch.nn.Module) -> None:
+        model.queue.load_state_dict(state["queue"])
+        self.queue_sizes, self.pruned = list(state["queue_sizes"]), list(state["pruned"])
+        anchors = state["anchors"]
+        model.anchors = None if anchors is None else Anchors.from_state(anchors)
 
     def summary(self) -> dict[str, Any]:
         return {

@@ -34,5 +34,11 @@ class Coresets(Method):
         count = min(self.options.per_task, len(ctx.train))
         self.buffer.append(ctx.train.subset(ctx.rng.choice(len(ctx.train), count, replace=False)))
 
+    def state_dict(self, model) -> dict[str, Any]:
+        return {"buffer": [w.state_dict() for w in self.buffer]}
+
+    def load_state_dict(self, state: dict[str, Any], model) -> None:
+        self.buffer = [Windows.from_state(w) for w in state["buffer"]]
+
     def summary(self) -> dict[str, Any]:
         return {"buffer_scenes": sum(len(w) for w in self.buffer)}

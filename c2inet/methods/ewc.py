@@ -62,4 +62,7 @@ class EWC(Method):
         self.anchor = {n: p.detach().clone() for n, p in model.named_parameters()}
 
     def state_dict(self, model: torch.nn.Module) -> dict[str, Any]:
-        return {"fisher": self.fisher, "anchor": self.anchor}
+        return {"fisher": dict(self.fisher), "anchor": dict(self.anchor)}
+
+    def load_state_dict(self, state: dict[str, Any], model: torch.nn.Module) -> None:
+        self.fisher, self.anchor = dict(state["fisher"]), dict(state["anchor"])

@@ -12,8 +12,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from c2inet.errors import InputError
 from sim.data import Domain
-from sim.errors import InputError
 
 GENERATORS: dict[str, type[Generator]] = {}
 

@@ -22,8 +22,8 @@ import pymunk
 import pymunk.batch
 from numba import njit
 
+from c2inet.errors import InputError
 from sim.data import SPLITS, Domain, Scene
-from sim.errors import InputError
 from sim.generators import Generator, child_seed
 from sim.generators.crowd_controller import Controller
 from sim.options import check_range

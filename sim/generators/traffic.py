@@ -22,8 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from c2inet.errors import InputError
 from sim.data import OBS_LEN, PRED_LEN, SPLITS, Domain, Scene, window_members
-from sim.errors import InputError
 from sim.generators import Generator, child_seed
 from sim.options import check_range
 from sim.stats import motion_stats, proximity_stats

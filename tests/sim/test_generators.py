@@ -1,19 +1,15 @@
-"""Every registered generator and method against the same contract (as Gymnasium's env checker)."""
+"""Every registered generator against the same contract (as Gymnasium's env checker)."""
 
 import dataclasses
-import sys
 
 import numpy as np
 import pytest
 
-from c2inet.methods.base import METHODS, Method, get_method
-from c2inet.model import ModelConfig
 from sim.data import SPLITS, Domain
 from sim.families import SCENARIOS_DIR, Splits, available_families, load_family
 from sim.generators import GENERATORS, Generator, get_generator
 
 get_generator("crowd")  # imports the built-in generators
-get_method("cv")  # and the built-in methods
 
 
 @pytest.mark.parametrize("name", sorted(GENERATORS))
@@ -59,13 +55,3 @@ def test_shipped_families_live_in_the_scenarios_folder():
         "highway_noise",
         "merge_density",
     } <= names
-
-
-@pytest.mark.parametrize("name", sorted(METHODS))
-def test_method_contract(name):
-    cls = METHODS[name]
-    assert issubclass(cls, Method) and cls.name == name and cls.__doc__
-    assert "Example" in sys.modules[cls.__module__].__doc__  # Mammoth-style: name, doc, example
-    assert dataclasses.is_dataclass(cls.Options)
-    model = cls(ModelConfig()).build_model()
-    assert callable(model.predict) and (not cls.trains or callable(model.loss))

@@ -3,24 +3,13 @@
 import numpy as np
 import pytest
 import torch
+from toys import toy_windows, turning_tasks
 
 from c2inet.batch import make_batch
 from c2inet.data import Windows
 from c2inet.methods.base import TaskContext, discover, get_method
 from c2inet.model import C2INetModel, ModelConfig, Predictor
-from c2inet.trainer import ContinualTrainer, Task, TrainConfig, load_checkpoint
-from sim.domains import build_domain
-from sim.families import Splits
-from sim.scenario import parse_scenario
-
-
-def toy_windows(scenes=12, seed=0) -> Windows:
-    rng = np.random.default_rng(seed)
-    counts = rng.integers(1, 5, scenes)
-    start = rng.normal(size=(counts.sum(), 1, 2))
-    velocity = rng.normal(0, 0.4, size=(counts.sum(), 1, 2))
-    positions = start + velocity * np.arange(20)[None, :, None]
-    return Windows(positions.astype(np.float32), np.concatenate([[0], np.cumsum(counts)]))
+from c2inet.trainer import ContinualTrainer, TrainConfig, load_checkpoint
 
 
 def test_changing_future_frames_never_changes_model_inputs():
@@ -78,14 +67,6 @@ def test_coresets_buffer_respects_its_size():
     assert len(method.training_windows(TaskContext(3, "t", current, None, None, rng))) == 7 + 13
 
 
-def tiny_tasks(scenario="crowd_noise_0.1,0.2", train=8):
-    tasks = []
-    for spec in parse_scenario(scenario):
-        d = build_domain(spec, 0, splits=Splits(train, 2, 3))
-        tasks.append(Task(d.name, d.windows("train"), d.windows("val"), d.windows("test")))
-    return tasks
-
-
 def test_every_method_is_discovered():
     assert set(discover()) >= {
         "finetune",
@@ -102,7 +83,7 @@ def test_every_method_is_discovered():
 def test_every_method_meets_the_contract(tmp_path, name):
     method = get_method(name)(ModelConfig())
     result = ContinualTrainer(
-        method, tiny_tasks(), TrainConfig(epochs=2, k=3), checkpoint_dir=tmp_path
+        method, turning_tasks(), TrainConfig(epochs=2, k=3), checkpoint_dir=tmp_path
     ).run()
     for matrix in result.matrices.values():
         assert matrix.shape == (2, 2) and np.isfinite(matrix).all()
@@ -120,7 +101,7 @@ def test_every_method_meets_the_contract(tmp_path, name):
 def test_same_seed_same_training_on_cpu():
     runs = [
         ContinualTrainer(
-            get_method("finetune")(ModelConfig()), tiny_tasks(), TrainConfig(epochs=1, k=2)
+            get_method("finetune")(ModelConfig()), turning_tasks(), TrainConfig(epochs=1, k=2)
         ).run()
         for _ in range(2)
     ]
@@ -131,7 +112,7 @@ def test_same_seed_same_training_on_cpu():
     "name", ["finetune", "ewc", "coresets", "c2inet-online", "c2inet-noqueue", "joint"]
 )
 def test_trained_methods_beat_constant_velocity_on_the_newest_task(name):
-    tasks = tiny_tasks("crowd_noise_0.5,0.6", train=80)
+    tasks = turning_tasks(train=40)
     config = TrainConfig(epochs=6, k=20)
     learned = ContinualTrainer(get_method(name)(ModelConfig()), tasks, config).run()
     floor = ContinualTrainer(get_method("cv")(ModelConfig()), tasks, config).run()

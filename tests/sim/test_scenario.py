@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sim.errors import InputError
+from c2inet.errors import InputError
 from sim.scenario import parse_scenario
 
 

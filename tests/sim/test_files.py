@@ -6,8 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from c2inet.errors import InputError
 from sim.domains import build_domain
-from sim.errors import InputError
 from sim.generators.files import read_trajectory_file
 from sim.scenario import parse_scenario
 

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
+from c2inet.errors import InputError
 from sim.domains import build_domain
-from sim.errors import InputError
 from sim.generators.crowd import CrowdKnobs, simulate
 from sim.scenario import parse_scenario
 

@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 import torch
+from toys import walkers
 
 from c2inet.batch import make_batch, variety_loss
 from c2inet.data import Windows
@@ -14,18 +15,6 @@ from c2inet.methods.c2inet_online import C2INetOptions
 from c2inet.model import ModelConfig, make_anchors
 from c2inet.prior import GaussianMixture
 from c2inet.trainer import ContinualTrainer, Task, TrainConfig
-
-
-def walkers(heading: float, scenes: int, seed: int) -> Windows:
-    """2-agent scenes walking at 0.4 m per frame, about ``heading`` (rad, spread 0.3)."""
-    rng = np.random.default_rng(seed)
-    agents = 2 * scenes
-    angle = rng.normal(heading, 0.3, (agents, 1))
-    steps = 0.4 * np.stack([np.cos(angle), np.sin(angle)], -1).repeat(20, axis=1)
-    steps += rng.normal(0, 0.15, steps.shape)
-    start = rng.uniform(-20, 20, (agents, 1, 2))
-    positions = start + np.cumsum(steps, axis=1)
-    return Windows(positions.astype(np.float32), np.arange(0, agents + 1, 2))
 
 
 def toy_tasks(scenes=48) -> list[Task]:

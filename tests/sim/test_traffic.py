@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
+from c2inet.errors import InputError
 from sim.domains import build_domain
-from sim.errors import InputError
 from sim.families import SCENARIOS_DIR, Splits
 from sim.generators.traffic import TrafficKnobs, local_scenes, simulate_episode
 from sim.scenario import parse_scenario

@@ -1,8 +1,0 @@
-"""The project's one error type for bad input: the entry points print it as one line, exit 2."""
-
-
-class InputError(ValueError):
-    """Bad user input (scenario, family TOML, knob value, data file, option).
-
-    The message names the input and what is wrong; it is shown to the user as is.
-    """

@@ -1,0 +1,51 @@
+"""What every entry point shares: an argument parser whose errors are one line, and the guard.
+
+It lives in `viz`, the lowest floor with entry points (`viz.serve`, `viz.screenshot`); `sim`'s
+command lines build on it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable
+
+from c2inet.errors import InputError
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # one line, exit 2, like every other input error
+        raise InputError(f"{self.prog}: {message}")
+
+
+def plain_parser(prog: str, description: str) -> argparse.ArgumentParser:
+    """An argument parser whose errors are one ``InputError`` line (see :func:`guarded`)."""
+    return _Parser(prog=prog, description=description)
+
+
+def bounded_int(low: int, high: int) -> Callable[[str], int]:
+    """An argparse ``type``: an integer in [low, high], else a one-line usage error."""
+
+    def convert(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"{value} is not between {low} and {high}")
+        return value
+
+    return convert
+
+
+def guarded(main: Callable[[list[str] | None], int]) -> Callable[[list[str] | None], int]:
+    """Run ``main``; bad input becomes one ``error:`` line on stderr and exit code 2."""
+
+    def run(argv: list[str] | None = None) -> int:
+        try:
+            return main(argv)
+        except InputError as error:
+            print(f"error: {error}", file=sys.stderr)
+            return 2
+
+    return run
