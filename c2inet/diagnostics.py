@@ -72,7 +72,7 @@ def _folds(labels: np.ndarray, seed: int) -> StratifiedKFold | None:
 
 
 def probe_accuracy(features: np.ndarray, labels: np.ndarray, seed: int = 0) -> float | None:
-    """Cross-validated accuracy of a linear (logistic) probe; None without 2 classes of 2 samples."""
+    """Cross-validated accuracy of a linear (logistic) probe; None without 2 classes of 2."""
     folds = _folds(labels, seed)
     if folds is None:
         return None

@@ -15,12 +15,17 @@ Everything is logged batched: one archetype per entity per frame, never one enti
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
+
+from c2inet.errors import InputError
+from c2inet.files import write_atomic
 
 GREY, GREEN, RED, ORANGE = (150, 150, 150), (40, 170, 60), (220, 60, 50), (255, 150, 0)
 
@@ -88,7 +93,7 @@ class RunRecorder:
         recording_id: str,
         path: Path | None,
         target: str | None,
-        blueprint: rrb.Blueprint,
+        blueprint: rrb.Blueprint | None,
     ) -> RunRecorder:
         """A recorder saving to ``path`` (when given) and streaming to ``target``.
 
@@ -99,9 +104,10 @@ class RunRecorder:
         if path is not None:
             path.parent.mkdir(parents=True, exist_ok=True)
             sinks.append(rr.FileSink(str(path)))
-        if target == "spawn":
-            stream.spawn(default_blueprint=blueprint)
-        elif target is not None and target.startswith("connect"):
+        if target == "spawn":  # start a viewer, then stream to it beside the file
+            stream.spawn(connect=False)
+            target = "connect"
+        if target is not None and target.startswith("connect"):
             url = target.partition("=")[2] or "rerun+http://127.0.0.1:9876/proxy"
             sinks.append(rr.GrpcSink(url))
         if sinks:
@@ -264,3 +270,17 @@ class RunRecorder:
             rr.Points2D(flat, radii=radii, labels=[f"{w:.2f}" for w in weights]),
         )
         self.rec.log(f"queue/{method}/weights", rr.BarChart(weights))
+
+
+def merge_recordings(parts: list[Path], path: Path) -> None:
+    """One recording file of ``parts`` (the run's and its jobs', same recording id), written
+    atomically with Rerun's own ``rerun rrd merge``."""
+    rerun = Path(sys.executable).with_name("rerun")
+
+    def merge(tmp: Path) -> None:
+        command = [str(rerun), "rrd", "merge", *map(str, parts), "-o", str(tmp)]
+        done = subprocess.run(command, capture_output=True, text=True, check=False)
+        if done.returncode != 0:
+            raise InputError(f"{path}: rerun rrd merge failed: {done.stderr.strip()[-500:]}")
+
+    write_atomic(path, merge)

@@ -62,7 +62,11 @@ def test_quick_run_writes_every_output(tmp_path):
     assert card["threads"] == 1 and card["train"]["k_train"] == 5
     assert all(d["hash"] for d in card["domains"])
     assert (out / "report.md").read_text().startswith("# Continual run")
-    assert sorted(p.name for p in (out / "checkpoints" / "finetune" / "seed_0").iterdir()) == [
+    assert card["command"].startswith("python -m sim.run --scenario crowd_noise_0.1..0.3")
+    assert card["backend"] == "local" and card["host"] and card["finished"].startswith("20")
+    assert card["git_commit"] is None or len(card["git_commit"]) >= 40
+    checkpoints = out / "jobs" / "finetune" / "seed_0" / "checkpoints"
+    assert sorted(p.name for p in checkpoints.iterdir()) == [
         "task_00.pt",
         "task_01.pt",
         "task_02.pt",
@@ -82,14 +86,14 @@ def test_settings_reach_the_method_and_the_run_card(tmp_path):
         "--set",
         "model.beta_z=0",
         "--out",
-        str(tmp_path),
+        str(tmp_path / "run"),
         "--cache",
         str(tmp_path / "cache"),
     )
     assert result.returncode == 0, result.stderr
-    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    metrics = json.loads((tmp_path / "run" / "metrics.json").read_text())
     assert metrics["methods"]["c2inet-online"]["queue_size"] == [1, 1]  # pruned to capacity
-    card = json.loads((tmp_path / "run_card.json").read_text())
+    card = json.loads((tmp_path / "run" / "run_card.json").read_text())
     assert card["model"]["beta_z"] == 0 and card["settings"]["c2inet-online"] == {"capacity": 1}
 
 
@@ -103,12 +107,12 @@ def test_seeds_give_mean_and_std(tmp_path):
         "--methods",
         "finetune",
         "--out",
-        str(tmp_path),
+        str(tmp_path / "run"),
         "--cache",
         str(tmp_path / "cache"),
     )
     assert result.returncode == 0, result.stderr
-    m = json.loads((tmp_path / "metrics.json").read_text())["methods"]["finetune"]
+    m = json.loads((tmp_path / "run" / "metrics.json").read_text())["methods"]["finetune"]
     assert m["seeds"] == 2 and any(v > 0 for row in m["ade_std"] for v in row)
 
 

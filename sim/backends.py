@@ -1,0 +1,95 @@
+"""Where an experiment's jobs run: in this process, in local processes, or as Ray tasks.
+
+Every backend calls the same ``fn(job, *shared, **options)`` once per job and returns the
+results in the jobs' order, so the numbers never depend on the backend or the number of workers.
+Ray is an optional extra (``pip install '.[ray]'``), imported only when asked for.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import signal
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from c2inet.errors import InputError
+
+BACKENDS = ("local", "ray")
+
+_shared: tuple = ()  # what a local worker process received once, at its start
+
+
+def _start_worker(shared: tuple) -> None:
+    """A local worker ignores Ctrl-C (the driver stops it) and keeps the shared inputs."""
+    global _shared
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _shared = shared
+
+
+def _call_in_worker(call: tuple[int, Callable, Any, dict]) -> tuple[int, Any]:
+    index, fn, job, options = call
+    return index, fn(job, *_shared, **options)
+
+
+def run_jobs(
+    fn: Callable[..., Any],
+    jobs: Sequence[Any],
+    shared: tuple = (),
+    backend: str = "local",
+    processes: int = 1,
+    ray_address: str | None = None,
+    options: dict[str, Any] | None = None,
+    progress: Callable[[int], Any] | None = None,
+    tasks_per_job: int = 1,
+) -> list[Any]:
+    """``[fn(job, *shared, **options) for job in jobs]`` on ``backend``.
+
+    ``progress(n)`` is told of finished tasks: each task when jobs run in this process (``fn``
+    receives ``on_task``), each job's ``tasks_per_job`` when they run elsewhere.
+    """
+    options = options or {}
+    progress = progress or (lambda _n: None)
+    if backend == "ray":
+        return _run_on_ray(
+            fn, jobs, shared, processes, ray_address, options, progress, tasks_per_job
+        )
+    if processes <= 1 or len(jobs) <= 1:
+        return [fn(job, *shared, **options, on_task=lambda: progress(1)) for job in jobs]
+    context = multiprocessing.get_context("spawn")  # torch and fork do not mix
+    pool = context.Pool(min(processes, len(jobs)), _start_worker, (shared,))
+    try:
+        results: dict[int, Any] = {}
+        calls = [(i, fn, job, options) for i, job in enumerate(jobs)]
+        for index, result in pool.imap_unordered(_call_in_worker, calls):
+            results[index] = result
+            progress(tasks_per_job)
+        pool.close()
+        return [results[i] for i in range(len(jobs))]
+    finally:
+        pool.terminate()  # on Ctrl-C or an error too: no worker outlives the driver
+        pool.join()
+
+
+def _run_on_ray(fn, jobs, shared, processes, address, options, progress, tasks_per_job):
+    """One Ray task per job with one CPU; the shared inputs go to the object store once."""
+    try:
+        import ray
+    except ImportError:
+        raise InputError("--backend ray: Ray is not installed (pip install '.[ray]')") from None
+    if address is not None:
+        ray.init(address=address, log_to_driver=False)
+    else:
+        ray.init(num_cpus=processes, include_dashboard=False, log_to_driver=False)
+    try:
+        refs = [ray.put(item) for item in shared]
+        remote = ray.remote(num_cpus=1)(fn)
+        pending = {remote.remote(job, *refs, **options): i for i, job in enumerate(jobs)}
+        results: dict[int, Any] = {}
+        while pending:
+            done, _ = ray.wait(list(pending), num_returns=1)
+            for ref in done:
+                results[pending.pop(ref)] = ray.get(ref)
+                progress(tasks_per_job)
+        return [results[i] for i in range(len(jobs))]
+    finally:
+        ray.shutdown()

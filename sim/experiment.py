@@ -1,0 +1,414 @@
+"""The experiment as a function: a typed configuration, its jobs, and :func:`run_experiment`.
+
+The unit of work is one job = (curriculum, method, seed): a function of the configuration with
+its own child seed, its own folder (checkpoints, result, recording) and its own result, so a
+local loop, local processes and Ray run the same jobs (``sim.backends``) and give the same
+numbers. ``sim.run`` and ``sim.sweep`` are thin command lines over these functions;
+``sim.outputs`` writes what a run leaves behind.
+
+From a notebook::
+
+    from sim.experiment import ExperimentConfig, run_experiment
+    metrics = run_experiment(ExperimentConfig("crowd_noise_0.1..0.3", quick=True))
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from c2inet.backbones import BACKBONES
+from c2inet.errors import InputError
+from c2inet.files import write_atomic, write_text_atomic
+from c2inet.methods.base import build_options, get_method
+from c2inet.model import ModelConfig
+from c2inet.trainer import ContinualTrainer, Result, Task, TrainConfig
+from sim.backends import BACKENDS, run_jobs
+from sim.data import SPLITS, cut_windows, window_members
+from sim.domains import build_domain, rollout_scene
+from sim.families import Splits
+from sim.generators import get_generator
+from sim.outputs import claim, output_folder, write_outputs
+from sim.scenario import DomainSpec, parse_scenario
+from viz.observer import RecordingObserver, Showcase, log_truth
+from viz.recording import RunRecorder, default_blueprint
+
+DEFAULT_METHODS = ("c2inet-online", "finetune", "cv")
+APP_ID = "c2i-testbed"
+QUICK_WINDOWS = 24  # at most this many windows per split in --quick runs (real data)
+SAMPLE_SCENES = 4  # test scenes per task drawn in the recording
+ROLLOUT_FRAMES = 50  # frames of the longer episode played per domain (20 s at 0.4 s)
+
+
+@dataclass(frozen=True)
+class ExperimentConfig:
+    """What an experiment computes: equal configurations give equal ``metrics.json``.
+
+    ``settings`` are option overrides by scope (``model``, ``train`` or a method's name), as
+    ``--set SCOPE.KEY=VALUE`` gives them. ``epochs`` and ``k`` default to 20 (2 and 5 when
+    ``quick``). Everything is checked on construction: bad input raises ``InputError``.
+    """
+
+    scenario: str
+    methods: tuple[str, ...] = DEFAULT_METHODS
+    seeds: int = 1
+    seed: int = 0
+    epochs: int | None = None
+    k: int | None = None
+    backbone: str = "stgat"
+    quick: bool = False
+    settings: dict[str, dict[str, Any]] = field(default_factory=dict)
+    scenarios_dir: tuple[Path, ...] = ()
+    record: bool = True
+
+    def __post_init__(self):
+        fill = object.__setattr__  # the resolved defaults belong to the frozen configuration
+        fill(self, "methods", tuple(self.methods))
+        fill(self, "scenarios_dir", tuple(Path(p) for p in self.scenarios_dir))
+        fill(self, "epochs", self.epochs if self.epochs is not None else (2 if self.quick else 20))
+        fill(self, "k", self.k if self.k is not None else (5 if self.quick else 20))
+        parse_scenario(self.scenario, list(self.scenarios_dir))  # a bad scenario fails here
+        if not self.methods:
+            raise InputError("methods: no method named")
+        if len(set(self.methods)) != len(self.methods):
+            raise InputError(f"methods: a method is named twice in {','.join(self.methods)}")
+        for name in self.methods:
+            try:
+                get_method(name)
+            except KeyError as error:
+                raise InputError(f"methods: {error.args[0]}") from None
+        if self.backbone not in BACKBONES:
+            raise InputError(f"backbone {self.backbone!r}: expected one of {sorted(BACKBONES)}")
+        for scope in self.settings:
+            if scope not in ("model", "train", *self.methods):
+                raise InputError(f"--set: scope {scope!r} is not model, train or a chosen method")
+        if self.seeds < 1 or self.epochs < 0 or self.k < 1:
+            raise InputError("seeds and k must be at least 1, epochs at least 0")
+        try:
+            self.model_config()
+            self.train_config()
+            for name in self.methods:
+                self.method(name)
+        except ValueError as error:
+            raise InputError(f"--set: {error}") from None
+
+    def model_config(self) -> ModelConfig:
+        return build_options(
+            ModelConfig, {"backbone": self.backbone, **self.settings.get("model", {})}
+        )
+
+    def train_config(self, seed_index: int = 0) -> TrainConfig:
+        """The trainer's options of the job with seed ``seed_index`` (its own seed)."""
+        train = {**self.settings.get("train", {}), "epochs": self.epochs, "k": self.k}
+        return build_options(TrainConfig, {**train, "seed": self.seed + seed_index})
+
+    def method(self, name: str):
+        return get_method(name)(self.model_config(), self.settings.get(name))
+
+    def jobs(self) -> list[Job]:
+        return [Job(m, s) for m in self.methods for s in range(self.seeds)]
+
+    def to_json(self) -> dict[str, Any]:
+        return {**asdict(self), "scenarios_dir": [str(p) for p in self.scenarios_dir]}
+
+
+@dataclass(frozen=True)
+class Execution:
+    """How an experiment runs; none of it changes a number of ``metrics.json``.
+
+    ``jobs``: local processes (``local``) or the CPUs of the local cluster Ray starts (``ray``,
+    unless ``ray_address`` joins an existing one). ``workers``: processes that generate episodes.
+    ``rerun``: also stream to a live viewer (``spawn`` or ``connect[=URL]``).
+    """
+
+    backend: str = "local"
+    jobs: int = 1
+    ray_address: str | None = None
+    threads: int = 1
+    workers: int = os.cpu_count() or 1
+    cache: Path = Path(".cache/domains")
+    rerun: str | None = None
+
+    def __post_init__(self):
+        if self.backend not in BACKENDS:
+            raise InputError(f"--backend {self.backend!r}: expected one of {', '.join(BACKENDS)}")
+        if (
+            self.rerun is not None
+            and self.rerun != "spawn"
+            and not self.rerun.startswith("connect")
+        ):
+            raise InputError(f"--rerun {self.rerun!r}: expected spawn, connect or connect=URL")
+        if self.ray_address is not None and self.backend != "ray":
+            raise InputError("--ray-address: only with --backend ray")
+
+    def live_target(self) -> str | None:
+        """Where jobs stream to: the spawned viewer's default address, or the given one."""
+        return None if self.rerun is None else "connect" if self.rerun == "spawn" else self.rerun
+
+
+@dataclass(frozen=True)
+class Job:
+    """One (method, seed) of an experiment; the curriculum is the experiment's."""
+
+    method: str
+    seed_index: int
+
+    def folder(self, out: Path) -> Path:
+        return out / "jobs" / self.method / f"seed_{self.seed_index}"
+
+
+@dataclass
+class JobInputs:
+    """What every job of an experiment reads: the learner's tasks and what the recording draws."""
+
+    tasks: list[Task]
+    showcases: list[Showcase]
+
+
+@dataclass
+class Curriculum:
+    """The generated domains of an experiment, as the learner and the recording use them."""
+
+    specs: list[DomainSpec]
+    domains: list
+    inputs: JobInputs
+    rollouts: dict[str, tuple]
+    labels: list[str]
+
+
+def parse_settings(items: list[str]) -> dict[str, dict[str, Any]]:
+    """``SCOPE.KEY=VALUE`` strings -> {scope: {key: value}}, values read as bool, int, float or
+    text (the option's type is checked when the configuration is built)."""
+    settings: dict[str, dict[str, Any]] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        scope, dot, name = key.partition(".")
+        if not sep or not dot or not name:
+            raise InputError(
+                f"--set {item!r}: expected SCOPE.KEY=VALUE, e.g. c2inet-online.pruning=false"
+            )
+        value: Any = {"true": True, "false": False}.get(text.strip().lower(), text)
+        if isinstance(value, str):
+            for kind in (int, float):
+                try:
+                    value = kind(text)
+                    break
+                except ValueError:
+                    pass
+        settings.setdefault(scope, {})[name] = value
+    return settings
+
+
+def make_tasks(
+    specs: list[DomainSpec], seed: int, quick: bool, cache: Path, workers: int
+) -> tuple[list[Task], list]:
+    """Domains of the curriculum as learner tasks (windows per split)."""
+    tasks, domains = [], []
+    for spec in tqdm(specs, desc="domains", unit="domain", file=sys.stderr, leave=False):
+        quick_splits = Splits(*get_generator(spec.family.generator).quick_splits) if quick else None
+        domain = build_domain(spec, seed, cache, quick_splits, workers)
+        splits = {}
+        for split in SPLITS:
+            windows = domain.windows(split)
+            if windows is not None and quick and len(windows) > QUICK_WINDOWS:
+                windows = windows.subset(np.arange(QUICK_WINDOWS))
+            splits[split] = windows
+        if splits["train"] is None or splits["test"] is None:
+            raise InputError(f"domain {domain.name}: no 20-frame window in its train or test split")
+        value = spec.value if isinstance(spec.value, int | float) else None
+        tasks.append(Task(domain.name, splits["train"], splits["val"], splits["test"], value))
+        domains.append(domain)
+    return tasks, domains
+
+
+def make_showcases(specs: list[DomainSpec], tasks: list[Task], seed: int) -> tuple[list, dict]:
+    """Per task: evenly spaced sample test scenes and a longer rollout cut into windows.
+
+    Returns the showcases and, per task, the rollout's positions and agent ids.
+    """
+    showcases, rollouts = [], {}
+    for spec, task in zip(specs, tasks, strict=True):
+        count = min(SAMPLE_SCENES, len(task.test))
+        scenes = task.test.subset(np.linspace(0, len(task.test) - 1, count).astype(int))
+        scene = rollout_scene(spec, seed, ROLLOUT_FRAMES)
+        windows = cut_windows(scene) if scene is not None else None
+        show = Showcase(task.name, scenes)
+        if windows is not None:
+            starts, _ = window_members(scene, windows.positions.shape[1])
+            show.rollout_windows = windows
+            show.rollout_frames = starts + windows.obs_len - 1
+            rollouts[task.name] = (scene.positions, scene.agent_ids)
+        showcases.append(show)
+    return showcases, rollouts
+
+
+def prepare(config: ExperimentConfig, execution: Execution) -> Curriculum:
+    """Generate (or read from the content-hashed cache) every domain of the curriculum."""
+    specs = parse_scenario(config.scenario, list(config.scenarios_dir))
+    tasks, domains = make_tasks(
+        specs, config.seed, config.quick, execution.cache, execution.workers
+    )
+    showcases, rollouts = make_showcases(specs, tasks, config.seed) if config.record else ([], {})
+    one_family = len({s.family.name for s in specs}) == 1
+    labels = [s.label if one_family else s.name for s in specs]
+    return Curriculum(specs, domains, JobInputs(tasks, showcases), rollouts, labels)
+
+
+@dataclass
+class JobResult:
+    """What one job measured (``c2inet.trainer.Result``) and the predictions it drew."""
+
+    job: Job
+    result: Result
+    predictions: dict[str, np.ndarray] = field(default_factory=dict)  # task -> (K, A, T, 2)
+
+    def save(self, folder: Path) -> None:
+        """``predictions.npz``, then ``result.json``, whose presence marks the job finished."""
+        if self.predictions:
+            write_atomic(
+                folder / "predictions.npz", lambda tmp: np.savez(tmp.open("wb"), **self.predictions)
+            )
+        r = self.result
+        data = {
+            "tasks": r.tasks,
+            "matrices": {m: v.tolist() for m, v in r.matrices.items()},
+            "summaries": r.summaries,
+            "history": r.history,
+            "diagnostics": r.diagnostics,
+        }
+        write_text_atomic(folder / "result.json", json.dumps(data) + "\n")
+
+    @staticmethod
+    def load(job: Job, folder: Path) -> JobResult:
+        data = json.loads((folder / "result.json").read_text())
+        matrices = {m: np.array(v, dtype=float) for m, v in data.pop("matrices").items()}
+        predictions = {}
+        if (folder / "predictions.npz").exists():
+            with np.load(folder / "predictions.npz", allow_pickle=False) as saved:
+                predictions = dict(saved)
+        return JobResult(job, Result(matrices=matrices, **data), predictions)
+
+
+def recording_id(config: ExperimentConfig) -> str:
+    """Shared by the run's and its jobs' recordings, so the viewer shows them as one."""
+    return f"{config.scenario}-seed{config.seed}"
+
+
+def run_job(
+    job: Job,
+    config: ExperimentConfig,
+    inputs: JobInputs,
+    out: Path,
+    threads: int = 1,
+    resume: bool = False,
+    live: str | None = None,
+    on_task: Callable[[], None] | None = None,
+) -> JobResult:
+    """Train one method with one seed through the curriculum, in ``job.folder(out)``.
+
+    With ``resume``, a finished job is read back and an unfinished one continues after its last
+    task checkpoint. The job's recording (the first seed's, when recorded) is written under a
+    temporary name and renamed when the job is complete.
+    """
+    torch.set_num_threads(threads)
+    folder = job.folder(out)
+    if resume and (folder / "result.json").exists():
+        return JobResult.load(job, folder)
+    observers = []
+    if on_task is not None:
+        observers.append(lambda event, _: on_task() if event == "task_end" else None)
+    recorder = drawing = None
+    if config.record and job.seed_index == 0:
+        partial = folder / "recording.partial.rrd"
+        recorder = RunRecorder.create(APP_ID, recording_id(config), partial, live, None)
+        drawing = RecordingObserver(
+            recorder, job.method, inputs.showcases, config.k, seed=config.seed
+        )
+        observers.append(drawing)
+    trainer = ContinualTrainer(
+        config.method(job.method),
+        inputs.tasks,
+        config.train_config(job.seed_index),
+        checkpoint_dir=folder / "checkpoints",
+        observers=observers,
+        progress=None if on_task is None else _epoch_bar,
+    )
+    result = JobResult(job, trainer.run(resume=resume))
+    if recorder is not None:
+        recorder.close()
+        os.replace(partial, folder / "recording.rrd")
+        result.predictions = drawing.final_predictions
+    result.save(folder)
+    return result
+
+
+def _epoch_bar(iterable, **options):
+    return tqdm(iterable, file=sys.stderr, unit="epoch", **options)
+
+
+def _record_truth(config: ExperimentConfig, curriculum: Curriculum, path: Path, live: str | None):
+    """The run's own recording: the blueprint, the domains and the ground truth."""
+    tasks = [t.name for t in curriculum.inputs.tasks]
+    recorder = RunRecorder.create(
+        APP_ID, recording_id(config), path, live, default_blueprint(tasks, SAMPLE_SCENES)
+    )
+    for domain in curriculum.domains:
+        recorder.log_domain(domain.name, domain.knobs, domain.stats)
+    log_truth(recorder, curriculum.inputs.showcases, curriculum.rollouts)
+    return recorder
+
+
+def run_experiment(
+    config: ExperimentConfig,
+    out: Path | None = None,
+    execution: Execution = Execution(),
+    resume: bool = False,
+    overwrite: bool = False,
+    argv: list[str] | None = None,
+) -> dict[str, Any]:
+    """Generate the curriculum, run every job on the chosen backend, write every output.
+
+    ``out``: the run's folder (default: a fresh ``runs/<scenario>/<timestamp>``, see
+    ``sim.outputs.output_folder``); a folder holding anything else is refused unless
+    ``overwrite``. With ``resume``, finished jobs are read back and unfinished ones continue from
+    their last task; the configuration must equal the folder's. Returns ``metrics.json``.
+    """
+    out = output_folder(config.scenario, out, resume)
+    claim(out, config, execution, resume, overwrite)
+    torch.set_num_threads(execution.threads)
+    started = time.perf_counter()
+    curriculum = prepare(config, execution)
+    truth = None
+    if config.record or execution.rerun:
+        path = out / "truth.partial.rrd" if config.record else None
+        truth = _record_truth(config, curriculum, path, execution.rerun)
+    jobs = config.jobs()
+    tasks = len(curriculum.inputs.tasks)
+    with tqdm(total=len(jobs) * tasks, desc="tasks", unit="task", file=sys.stderr) as bar:
+        results = run_jobs(
+            run_job,
+            jobs,
+            shared=(config, curriculum.inputs, out),
+            backend=execution.backend,
+            processes=execution.jobs,
+            ray_address=execution.ray_address,
+            options={
+                "threads": execution.threads,
+                "resume": resume,
+                "live": execution.live_target(),
+            },
+            progress=bar.update,
+            tasks_per_job=tasks,
+        )
+    wall = time.perf_counter() - started
+    return write_outputs(out, config, execution, curriculum, results, truth, wall, argv or sys.argv)

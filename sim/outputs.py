@@ -1,0 +1,231 @@
+"""What a run leaves behind, and the folder it goes in.
+
+A run's folder holds ``config.json`` (what it computes and how, written first), ``jobs/`` (per
+method and seed: checkpoints, ``result.json``, the job's recording), and when it finishes
+``metrics.json`` (the machine-readable contract: per method best-of-K joint ``ade``/``fde``,
+single-sample ``ade_k1``/``fde_k1``, ``avg_seen_ade``, ``forgetting_final_ade`` and
+``forgetting_worst_ade``, ``diagnostics``, ``seeds``; row i is after task i), ``matrices/*.csv``,
+``report.md``, ``figures/``, ``run_card.json`` and ``recording.rrd``. Folders never mix runs.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import re
+import shlex
+import shutil
+import subprocess
+import time
+from dataclasses import asdict
+from importlib import metadata
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import torch
+
+from c2inet.errors import InputError
+from c2inet.files import write_text_atomic
+from c2inet.report import markdown_report, matrix_csv, summarise, summarise_diagnostics
+from sim.data import SPLITS
+from sim.generate import domain_summary
+from viz import figures
+from viz.recording import merge_recordings
+
+if TYPE_CHECKING:
+    from sim.experiment import Curriculum, Execution, ExperimentConfig, JobResult
+
+RUNS = Path("runs")
+
+
+def run_root(scenario: str) -> Path:
+    """``runs/<scenario>`` with every character outside [A-Za-z0-9._,+-] replaced by '_'."""
+    name = re.sub(r"[^A-Za-z0-9._,+-]", "_", scenario).strip(".") or "scenario"
+    return RUNS / name
+
+
+def output_folder(scenario: str, out: Path | None, resume: bool = False) -> Path:
+    """The run's folder: ``out``, or without it a fresh ``runs/<scenario>/<timestamp>`` with a
+    ``latest`` link beside it (with ``resume``: the folder ``latest`` points to)."""
+    if out is not None:
+        return out
+    root = run_root(scenario)
+    latest = root / "latest"
+    if resume:
+        if not latest.exists():
+            raise InputError(f"--resume: no earlier run of {scenario} under {root}; give --out")
+        return root / os.readlink(latest)
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    for attempt in range(1, 100):
+        name = stamp if attempt == 1 else f"{stamp}-{attempt}"
+        try:
+            (root / name).mkdir(parents=True)
+            break
+        except FileExistsError:
+            continue
+    link = root / f".latest.{os.getpid()}"
+    link.unlink(missing_ok=True)
+    link.symlink_to(name)
+    os.replace(link, latest)
+    return root / name
+
+
+def claim(
+    out: Path,
+    config: ExperimentConfig,
+    execution: Execution,
+    resume: bool = False,
+    overwrite: bool = False,
+) -> None:
+    """Make ``out`` this run's: refuse a folder holding something else, check that a resumed run
+    has the same configuration, and write ``config.json``."""
+    saved = out / "config.json"
+    if resume:
+        if not saved.is_file():
+            raise InputError(f"--resume: {out} holds no run to resume (no config.json)")
+        before = json.loads(saved.read_text())["experiment"]
+        now = json.loads(json.dumps(config.to_json()))
+        changed = sorted(k for k in now if before.get(k) != now[k])
+        if changed:
+            raise InputError(
+                f"--resume: {out} holds a run with other {', '.join(changed)}; "
+                "resume it with the same options, or use --overwrite"
+            )
+        return
+    if out.exists() and any(out.iterdir()):
+        if not overwrite:
+            raise InputError(
+                f"--out {out}: not empty; add --resume to continue the run in it, "
+                "or --overwrite to replace it"
+            )
+        if not saved.is_file():
+            raise InputError(
+                f"--overwrite: {out} holds no run (no config.json), so it is not removed"
+            )
+        shutil.rmtree(out)
+    data = {"experiment": config.to_json(), "execution": _plain(asdict(execution))}
+    write_text_atomic(saved, json.dumps(data, indent=1) + "\n")
+
+
+def _plain(values: dict[str, Any]) -> dict[str, Any]:
+    return {k: str(v) if isinstance(v, Path) else v for k, v in values.items()}
+
+
+def versions() -> dict[str, str]:
+    out = {"python": platform.python_version()}
+    for package in ("torch", "numpy", "pymunk", "rerun-sdk", "highway-env", "ray", "c2i-testbed"):
+        try:
+            out[package] = metadata.version(package)
+        except metadata.PackageNotFoundError:
+            out[package] = "missing"
+    return out
+
+
+def git_commit() -> str | None:
+    """The checkout's commit (``+dirty`` with uncommitted changes), None outside a git checkout."""
+    here = Path(__file__).parent
+
+    def git(*args: str) -> str:
+        done = subprocess.run(
+            ["git", "-C", str(here), *args], capture_output=True, text=True, check=True
+        )
+        return done.stdout.strip()
+
+    try:
+        commit = git("rev-parse", "HEAD")
+        return commit + ("+dirty" if git("status", "--porcelain", "--untracked-files=no") else "")
+    except (OSError, subprocess.CalledProcessError):
+        return None
+
+
+def summarise_jobs(config: ExperimentConfig, results: list[JobResult]) -> dict[str, dict]:
+    """Per method: mean and std over seeds of every matrix and summary, the first seed's
+    history, and the diagnostics averaged over seeds."""
+    out: dict[str, dict] = {}
+    for name in config.methods:
+        runs = [r.result for r in results if r.job.method == name]
+        out[name] = summarise([r.matrices for r in runs], [r.summaries for r in runs])
+        out[name]["history"] = runs[0].history
+        out[name]["diagnostics"] = summarise_diagnostics([r.diagnostics for r in runs])
+    return out
+
+
+def write_outputs(
+    out: Path,
+    config: ExperimentConfig,
+    execution: Execution,
+    curriculum: Curriculum,
+    results: list[JobResult],
+    truth,
+    wall: float,
+    argv: list[str],
+) -> dict[str, Any]:
+    """metrics.json, matrices, run card, report, figures and the merged recording; returns the
+    metrics. ``truth``: the run's own recorder (None when nothing is recorded)."""
+    tasks = [t.name for t in curriculum.inputs.tasks]
+    labels = curriculum.labels
+    summary = summarise_jobs(config, results)
+    metrics = {
+        "scenario": config.scenario,
+        "tasks": tasks,
+        "labels": labels,
+        "k": config.k,
+        "seed": config.seed,
+        "epochs": config.epochs,
+        "methods": summary,
+    }
+    write_text_atomic(out / "metrics.json", json.dumps(metrics, indent=1) + "\n")
+    for name, result in summary.items():
+        first = next(r.result for r in results if r.job.method == name)
+        for key in first.matrices:
+            write_text_atomic(
+                out / "matrices" / f"{name}_{key}.csv", matrix_csv(result[key], tasks)
+            )
+    run_card = {
+        "scenario": config.scenario,
+        "seed": config.seed,
+        "seeds": config.seeds,
+        "methods": list(config.methods),
+        "quick": config.quick,
+        "command": shlex.join(argv),
+        "git_commit": git_commit(),
+        "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "host": platform.node(),
+        "backend": execution.backend,
+        "jobs": execution.jobs,
+        "threads": torch.get_num_threads(),  # what torch uses, not only what was asked
+        "wall_seconds": round(wall, 1),
+        "model": asdict(config.model_config()),
+        "train": asdict(config.train_config()),
+        "settings": config.settings,
+        "versions": versions(),
+        "domains": [domain_summary(d) for d in curriculum.domains],
+        "windows": {t.name: _window_counts(t) for t in curriculum.inputs.tasks},
+    }
+    write_text_atomic(out / "run_card.json", json.dumps(run_card, indent=1) + "\n")
+    report = markdown_report(config.scenario, labels, config.k, summary)
+    write_text_atomic(out / "report.md", report)
+    for name, result in summary.items():
+        figures.error_matrix(name, result["ade"], labels, out / "figures" / f"matrix_{name}.png")
+        figures.per_task(name, result["ade"], labels, out / "figures" / f"per_task_{name}.png")
+    figures.average_seen(summary, labels, out / "figures" / "average_seen.png")
+    if truth is not None:
+        drawn = {r.job.method: r.predictions for r in results if r.predictions}
+        samples = {show.task: show.scenes for show in curriculum.inputs.showcases}
+        figures.prediction_grid(samples, drawn, out / "figures" / "predictions.png")
+        truth.log_run_card(
+            f"{report}\n## Run card\n\n```json\n{json.dumps(run_card, indent=1)}\n```\n"
+        )
+        truth.close()
+        if config.record:
+            parts = [out / "truth.partial.rrd"]
+            parts += [r.job.folder(out) / "recording.rrd" for r in results if r.predictions]
+            merge_recordings(parts, out / "recording.rrd")
+            parts[0].unlink()
+    return metrics
+
+
+def _window_counts(task) -> dict[str, int]:
+    """Windows per split of a task (0 for a missing split)."""
+    return {s: 0 if getattr(task, s) is None else len(getattr(task, s)) for s in SPLITS}

@@ -1,0 +1,167 @@
+"""Runs that survive and scale: fresh folders, resume after kill -9 or Ctrl-C, any backend.
+
+Every check compares ``metrics.json`` byte for byte with an uninterrupted run's.
+"""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from c2inet.errors import InputError
+from sim.experiment import Execution, ExperimentConfig, run_experiment
+from sim.outputs import claim, output_folder
+
+QUICK = ["--scenario", "crowd_noise_0.1..0.3", "--quick", "--methods", "c2inet-online,finetune"]
+
+
+def start(out: Path, cache: Path, *extra: str, cwd: Path | None = None) -> subprocess.Popen:
+    command = [sys.executable, "-m", "sim.run", *QUICK, "--cache", str(cache), *extra]
+    if out is not None:
+        command += ["--out", str(out)]
+    return subprocess.Popen(
+        command, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+
+
+def finish(process: subprocess.Popen) -> subprocess.CompletedProcess:
+    stdout, stderr = process.communicate(timeout=300)
+    return subprocess.CompletedProcess(process.args, process.returncode, stdout, stderr)
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """An uninterrupted quick run: its folder and its metrics.json."""
+    root = tmp_path_factory.mktemp("reference")
+    done = finish(start(root / "run", root / "cache", "--epochs", "4"))
+    assert done.returncode == 0, done.stderr
+    return root / "run", (root / "run" / "metrics.json").read_bytes()
+
+
+def wait_for(process: subprocess.Popen, path: Path, seconds: float = 120) -> None:
+    deadline = time.monotonic() + seconds
+    while not path.exists():
+        assert process.poll() is None, f"run ended before {path} appeared: {process.stderr.read()}"
+        assert time.monotonic() < deadline, f"{path} never appeared"
+        time.sleep(0.005)
+
+
+@pytest.mark.parametrize(
+    "moment",
+    [
+        "config.json",  # during generation
+        "jobs/c2inet-online/seed_0/checkpoints/task_00.pt",  # mid-job
+        "jobs/c2inet-online/seed_0/result.json",  # between jobs
+    ],
+)
+def test_killed_runs_resume_to_the_same_metrics(tmp_path, reference, moment):
+    out = tmp_path / "run"
+    process = start(out, tmp_path / "cache", "--epochs", "4")
+    wait_for(process, out / moment)
+    process.send_signal(signal.SIGKILL)
+    assert process.wait() == -signal.SIGKILL
+    assert not (out / "metrics.json").exists() and not (out / "recording.rrd").exists()
+    refused = finish(start(out, tmp_path / "cache", "--epochs", "4"))
+    assert refused.returncode == 2 and "--resume" in refused.stderr  # never mixed into
+    resumed = finish(start(out, tmp_path / "cache", "--epochs", "4", "--resume"))
+    assert resumed.returncode == 0, resumed.stderr
+    assert (out / "metrics.json").read_bytes() == reference[1]
+    assert (out / "recording.rrd").stat().st_size > 0
+    assert not list(out.rglob("*.partial.rrd")) and not list(out.rglob(".*.tmp*"))
+
+
+def test_ctrl_c_leaves_one_line_and_a_command_that_resumes(tmp_path, reference):
+    out = tmp_path / "run"
+    process = start(out, tmp_path / "cache", "--epochs", "4")
+    wait_for(process, out / "jobs/c2inet-online/seed_0/checkpoints/task_00.pt")
+    process.send_signal(signal.SIGINT)
+    stopped = finish(process)
+    assert stopped.returncode == 130 and "Traceback" not in stopped.stderr
+    last = stopped.stderr.strip().splitlines()[-1]
+    assert last.startswith("interrupted:") and last.endswith("--resume")
+    command = last.partition("continue with: ")[2].split()
+    assert command[:3] == ["python", "-m", "sim.run"]
+    command[0] = sys.executable
+    resumed = subprocess.run(command, capture_output=True, text=True, check=False)
+    assert resumed.returncode == 0, resumed.stderr
+    assert (out / "metrics.json").read_bytes() == reference[1]
+
+
+@pytest.mark.parametrize("backend", ["local", "ray"])
+def test_parallel_jobs_give_the_same_metrics(tmp_path, reference, backend):
+    env = {**os.environ, "HOME": str(tmp_path)}  # Ray writes its token under the home folder
+    command = [
+        sys.executable,
+        "-m",
+        "sim.run",
+        *QUICK,
+        "--epochs",
+        "4",
+        "--seeds",
+        "1",
+        "--jobs",
+        "2",
+        "--backend",
+        backend,
+        "--cache",
+        str(tmp_path / "cache"),
+        "--out",
+        str(tmp_path / "run"),
+    ]
+    done = subprocess.run(command, capture_output=True, text=True, env=env, check=False)
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "run" / "metrics.json").read_bytes() == reference[1]
+    card = json.loads((tmp_path / "run" / "run_card.json").read_text())
+    assert card["backend"] == backend and card["jobs"] == 2
+
+
+def test_each_run_gets_a_fresh_folder_and_latest_points_to_it(tmp_path):
+    cache = tmp_path / "cache"
+    first = finish(start(None, cache, "--no-record", cwd=tmp_path))
+    second = finish(start(None, cache, "--no-record", cwd=tmp_path))
+    assert first.returncode == 0 and second.returncode == 0, second.stderr
+    root = tmp_path / "runs" / "crowd_noise_0.1..0.3"
+    runs = sorted(p for p in root.iterdir() if p.name != "latest")
+    assert len(runs) == 2 and all((p / "metrics.json").exists() for p in runs)
+    assert (root / "latest").resolve() == runs[-1].resolve()
+    again = finish(start(None, cache, "--no-record", "--resume", cwd=tmp_path))
+    assert again.returncode == 0 and str(runs[-1].relative_to(tmp_path)) in again.stdout
+
+
+def test_a_folder_is_only_replaced_when_it_holds_a_run(tmp_path):
+    config = ExperimentConfig("crowd_noise_0.1", methods=("cv",), quick=True, record=False)
+    (tmp_path / "notes.txt").write_text("mine")
+    with pytest.raises(InputError, match="not empty"):
+        claim(tmp_path, config, Execution())
+    with pytest.raises(InputError, match="holds no run"):
+        claim(tmp_path, config, Execution(), overwrite=True)
+    with pytest.raises(InputError, match="holds no run to resume"):
+        claim(tmp_path, config, Execution(), resume=True)
+    assert (tmp_path / "notes.txt").read_text() == "mine"
+
+
+def test_the_experiment_is_a_function(tmp_path):
+    config = ExperimentConfig("crowd_noise_0.1,0.2", methods=("cv",), quick=True, record=False)
+    metrics = run_experiment(config, tmp_path / "run", Execution(cache=tmp_path / "cache"))
+    assert metrics["tasks"] == ["crowd_noise_0.1", "crowd_noise_0.2"]
+    assert json.loads((tmp_path / "run" / "metrics.json").read_text()) == metrics
+    assert output_folder("x", tmp_path / "given") == tmp_path / "given"
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"methods": ("sgd",)}, "unknown method"),
+        ({"methods": ()}, "no method"),
+        ({"settings": {"ewc": {"strength": 1}}}, "not model, train"),
+        ({"scenario": "crowd_noise_1..0"}, "reversed"),
+    ],
+)
+def test_bad_configurations_are_refused_on_construction(options, message):
+    with pytest.raises(InputError, match=message):
+        ExperimentConfig(**{"scenario": "crowd_noise_0.1", **options})
