@@ -59,9 +59,11 @@ def run(job, root: Path, seeds: int, quick: bool) -> tuple[str, float]:
     command += ["--workers", "1"] + (["--quick"] if quick else [])
     for item in settings:
         command += ["--set", item]
+    if (out / "config.json").exists():  # an interrupted run continues where it stopped
+        command.append("--resume")
     start = time.perf_counter()
-    out.mkdir(parents=True, exist_ok=True)
-    with open(out / "log.txt", "w") as log:
+    root.mkdir(parents=True, exist_ok=True)
+    with open(root / f"{name}.log", "a") as log:
         subprocess.run(command, stdout=log, stderr=subprocess.STDOUT, check=True)
     return name, time.perf_counter() - start
 

@@ -40,19 +40,17 @@ def run_jobs(
     ray_address: str | None = None,
     options: dict[str, Any] | None = None,
     progress: Callable[[int], Any] | None = None,
-    tasks_per_job: int = 1,
+    tasks_of: Callable[[Any], int] = lambda _job: 1,
 ) -> list[Any]:
     """``[fn(job, *shared, **options) for job in jobs]`` on ``backend``.
 
     ``progress(n)`` is told of finished tasks: each task when jobs run in this process (``fn``
-    receives ``on_task``), each job's ``tasks_per_job`` when they run elsewhere.
+    receives ``on_task``), a job's ``tasks_of(job)`` when it finishes elsewhere.
     """
     options = options or {}
     progress = progress or (lambda _n: None)
     if backend == "ray":
-        return _run_on_ray(
-            fn, jobs, shared, processes, ray_address, options, progress, tasks_per_job
-        )
+        return _run_on_ray(fn, jobs, shared, processes, ray_address, options, progress, tasks_of)
     if processes <= 1 or len(jobs) <= 1:
         return [fn(job, *shared, **options, on_task=lambda: progress(1)) for job in jobs]
     context = multiprocessing.get_context("spawn")  # torch and fork do not mix
@@ -62,7 +60,7 @@ def run_jobs(
         calls = [(i, fn, job, options) for i, job in enumerate(jobs)]
         for index, result in pool.imap_unordered(_call_in_worker, calls):
             results[index] = result
-            progress(tasks_per_job)
+            progress(tasks_of(jobs[index]))
         pool.close()
         return [results[i] for i in range(len(jobs))]
     finally:
@@ -70,7 +68,7 @@ def run_jobs(
         pool.join()
 
 
-def _run_on_ray(fn, jobs, shared, processes, address, options, progress, tasks_per_job):
+def _run_on_ray(fn, jobs, shared, processes, address, options, progress, tasks_of):
     """One Ray task per job with one CPU; the shared inputs go to the object store once."""
     try:
         import ray
@@ -88,8 +86,9 @@ def _run_on_ray(fn, jobs, shared, processes, address, options, progress, tasks_p
         while pending:
             done, _ = ray.wait(list(pending), num_returns=1)
             for ref in done:
-                results[pending.pop(ref)] = ray.get(ref)
-                progress(tasks_per_job)
+                index = pending.pop(ref)
+                results[index] = ray.get(ref)
+                progress(tasks_of(jobs[index]))
         return [results[i] for i in range(len(jobs))]
     finally:
         ray.shutdown()

@@ -9,10 +9,16 @@ from pathlib import Path
 from viz.cli import bounded_int, plain_parser
 
 
-def parser(prog: str, description: str) -> argparse.ArgumentParser:
-    """An argument parser with the options every scenario entry point takes."""
+def parser(prog: str, description: str, scenarios: bool = False) -> argparse.ArgumentParser:
+    """An argument parser with the options every scenario entry point takes
+    (``scenarios``: ``--scenario`` may be repeated, and gives a list)."""
     p = plain_parser(prog, description)
-    p.add_argument("--scenario", required=True, help="curriculum, e.g. crowd_noise_0.1..0.6")
+    p.add_argument(
+        "--scenario",
+        required=True,
+        action="append" if scenarios else "store",
+        help="curriculum, e.g. crowd_noise_0.1..0.6" + (" (repeatable)" if scenarios else ""),
+    )
     p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
     p.add_argument(
         "--scenarios-dir",

@@ -197,16 +197,21 @@ def parse_settings(items: list[str]) -> dict[str, dict[str, Any]]:
             raise InputError(
                 f"--set {item!r}: expected SCOPE.KEY=VALUE, e.g. c2inet-online.pruning=false"
             )
-        value: Any = {"true": True, "false": False}.get(text.strip().lower(), text)
-        if isinstance(value, str):
-            for kind in (int, float):
-                try:
-                    value = kind(text)
-                    break
-                except ValueError:
-                    pass
-        settings.setdefault(scope, {})[name] = value
+        settings.setdefault(scope, {})[name] = parse_value(text)
     return settings
+
+
+def parse_value(text: str) -> bool | int | float | str:
+    """An option value from the command line: true/false, an integer, a number, or text."""
+    flag = {"true": True, "false": False}.get(text.strip().lower())
+    if flag is not None:
+        return flag
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
 
 
 def make_tasks(
@@ -356,7 +361,7 @@ def _epoch_bar(iterable, **options):
     return tqdm(iterable, file=sys.stderr, unit="epoch", **options)
 
 
-def _record_truth(config: ExperimentConfig, curriculum: Curriculum, path: Path, live: str | None):
+def record_truth(config: ExperimentConfig, curriculum: Curriculum, path: Path, live: str | None):
     """The run's own recording: the blueprint, the domains and the ground truth."""
     tasks = [t.name for t in curriculum.inputs.tasks]
     recorder = RunRecorder.create(
@@ -371,7 +376,7 @@ def _record_truth(config: ExperimentConfig, curriculum: Curriculum, path: Path, 
 def run_experiment(
     config: ExperimentConfig,
     out: Path | None = None,
-    execution: Execution = Execution(),
+    execution: Execution | None = None,
     resume: bool = False,
     overwrite: bool = False,
     argv: list[str] | None = None,
@@ -383,6 +388,7 @@ def run_experiment(
     ``overwrite``. With ``resume``, finished jobs are read back and unfinished ones continue from
     their last task; the configuration must equal the folder's. Returns ``metrics.json``.
     """
+    execution = execution or Execution()
     out = output_folder(config.scenario, out, resume)
     claim(out, config, execution, resume, overwrite)
     torch.set_num_threads(execution.threads)
@@ -391,7 +397,7 @@ def run_experiment(
     truth = None
     if config.record or execution.rerun:
         path = out / "truth.partial.rrd" if config.record else None
-        truth = _record_truth(config, curriculum, path, execution.rerun)
+        truth = record_truth(config, curriculum, path, execution.rerun)
     jobs = config.jobs()
     tasks = len(curriculum.inputs.tasks)
     with tqdm(total=len(jobs) * tasks, desc="tasks", unit="task", file=sys.stderr) as bar:
@@ -408,7 +414,7 @@ def run_experiment(
                 "live": execution.live_target(),
             },
             progress=bar.update,
-            tasks_per_job=tasks,
+            tasks_of=lambda _job: tasks,
         )
     wall = time.perf_counter() - started
     return write_outputs(out, config, execution, curriculum, results, truth, wall, argv or sys.argv)

@@ -33,7 +33,7 @@ def test_imports_point_one_way(package):
         assert not wrong, f"{path.relative_to(ROOT)} imports {sorted(wrong)}"
 
 
-BLOCKER = '''
+BLOCKER = """
 import sys
 
 BLOCKED = {"sim", "viz", "pymunk", "highway_env", "gymnasium", "rerun"}
@@ -46,7 +46,7 @@ class Blocker:
 
 
 sys.meta_path.insert(0, Blocker())
-'''
+"""
 
 
 def test_learner_tests_pass_without_the_simulators(tmp_path):

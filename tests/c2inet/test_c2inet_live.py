@@ -5,7 +5,6 @@ import math
 import numpy as np
 import pytest
 import torch
-from toys import walkers
 
 from c2inet.batch import make_batch, variety_loss
 from c2inet.data import Windows
@@ -15,6 +14,8 @@ from c2inet.methods.c2inet_online import C2INetOptions
 from c2inet.model import ModelConfig, make_anchors
 from c2inet.prior import GaussianMixture
 from c2inet.trainer import ContinualTrainer, Task, TrainConfig
+
+from toys import walkers
 
 
 def toy_tasks(scenes=48) -> list[Task]:

@@ -3,13 +3,14 @@
 import numpy as np
 import pytest
 import torch
-from toys import toy_windows, turning_tasks
 
 from c2inet.batch import make_batch
 from c2inet.data import Windows
 from c2inet.methods.base import TaskContext, discover, get_method
 from c2inet.model import C2INetModel, ModelConfig, Predictor
 from c2inet.trainer import ContinualTrainer, TrainConfig, load_checkpoint
+
+from toys import toy_windows, turning_tasks
 
 
 def test_changing_future_frames_never_changes_model_inputs():

@@ -1,4 +1,4 @@
-"""Every registered method against the same contract (as Gymnasium's env checker), resume included."""
+"""Every registered method against one contract (as Gymnasium's env checker), resume included."""
 
 import dataclasses
 import sys
@@ -9,6 +9,7 @@ import pytest
 from c2inet.methods.base import Method, discover
 from c2inet.model import ModelConfig
 from c2inet.trainer import ContinualTrainer, TrainConfig, load_checkpoint
+
 from toys import turning_tasks
 
 METHODS = discover()

@@ -11,7 +11,7 @@ from sim.domains import build_domain
 from sim.generators.files import read_trajectory_file
 from sim.scenario import parse_scenario
 
-DATA = Path(__file__).resolve().parent.parent / "data"
+DATA = Path(__file__).resolve().parents[2] / "data"
 
 
 def write(tmp_path, text, name="t.txt"):
