@@ -263,7 +263,8 @@ def prepare(config: ExperimentConfig, execution: Execution) -> Curriculum:
     tasks, domains = make_tasks(
         specs, config.seed, config.quick, execution.cache, execution.workers
     )
-    showcases, rollouts = make_showcases(specs, tasks, config.seed) if config.record else ([], {})
+    drawn = config.record or execution.rerun is not None
+    showcases, rollouts = make_showcases(specs, tasks, config.seed) if drawn else ([], {})
     one_family = len({s.family.name for s in specs}) == 1
     labels = [s.label if one_family else s.name for s in specs]
     return Curriculum(specs, domains, JobInputs(tasks, showcases), rollouts, labels)
@@ -333,8 +334,8 @@ def run_job(
     if on_task is not None:
         observers.append(lambda event, _: on_task() if event == "task_end" else None)
     recorder = drawing = None
-    if config.record and job.seed_index == 0:
-        partial = folder / "recording.partial.rrd"
+    if (config.record or live) and job.seed_index == 0:  # the first seed is drawn
+        partial = folder / "recording.partial.rrd" if config.record else None
         recorder = RunRecorder.create(APP_ID, recording_id(config), partial, live, None)
         drawing = RecordingObserver(
             recorder, job.method, inputs.showcases, config.k, seed=config.seed
@@ -351,7 +352,8 @@ def run_job(
     result = JobResult(job, trainer.run(resume=resume))
     if recorder is not None:
         recorder.close()
-        os.replace(partial, folder / "recording.rrd")
+        if partial is not None:
+            os.replace(partial, folder / "recording.rrd")
         result.predictions = drawing.final_predictions
     result.save(folder)
     return result

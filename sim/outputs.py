@@ -210,10 +210,11 @@ def write_outputs(
         figures.error_matrix(name, result["ade"], labels, out / "figures" / f"matrix_{name}.png")
         figures.per_task(name, result["ade"], labels, out / "figures" / f"per_task_{name}.png")
     figures.average_seen(summary, labels, out / "figures" / "average_seen.png")
-    if truth is not None:
-        drawn = {r.job.method: r.predictions for r in results if r.predictions}
+    drawn = {r.job.method: r.predictions for r in results if r.predictions}
+    if drawn:
         samples = {show.task: show.scenes for show in curriculum.inputs.showcases}
         figures.prediction_grid(samples, drawn, out / "figures" / "predictions.png")
+    if truth is not None:
         truth.log_run_card(
             f"{report}\n## Run card\n\n```json\n{json.dumps(run_card, indent=1)}\n```\n"
         )
