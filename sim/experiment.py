@@ -92,8 +92,13 @@ class ExperimentConfig:
         for scope in self.settings:
             if scope not in ("model", "train", *self.methods):
                 raise InputError(f"--set: scope {scope!r} is not model, train or a chosen method")
-        if self.seeds < 1 or self.epochs < 0 or self.k < 1:
-            raise InputError("seeds and k must be at least 1, epochs at least 0")
+        for name, value, low in (
+            ("seeds", self.seeds, 1),
+            ("epochs", self.epochs, 0),
+            ("k", self.k, 1),
+        ):
+            if value < low:
+                raise InputError(f"{name} must be at least {low}, got {value}")
         try:
             self.model_config()
             self.train_config()
@@ -280,10 +285,13 @@ class JobResult:
 
     def save(self, folder: Path) -> None:
         """``predictions.npz``, then ``result.json``, whose presence marks the job finished."""
+
+        def write_predictions(tmp: Path) -> None:
+            with tmp.open("wb") as file:  # a file object: np.savez would append .npz to a name
+                np.savez(file, **self.predictions)
+
         if self.predictions:
-            write_atomic(
-                folder / "predictions.npz", lambda tmp: np.savez(tmp.open("wb"), **self.predictions)
-            )
+            write_atomic(folder / "predictions.npz", write_predictions)
         r = self.result
         data = {
             "tasks": r.tasks,

@@ -62,8 +62,19 @@ def add_experiment_options(p) -> None:
     p.add_argument("--no-record", action="store_true", help="do not write recording.rrd")
 
 
-def methods_of(text: str) -> tuple[str, ...]:
-    return tuple(n.strip() for n in text.split(",") if n.strip())
+def experiment_options(args) -> dict:
+    """The fields of ``ExperimentConfig`` given by :func:`add_experiment_options`' options."""
+    return {
+        "methods": tuple(n.strip() for n in args.methods.split(",") if n.strip()),
+        "seeds": args.seeds,
+        "seed": args.seed,
+        "epochs": args.epochs,
+        "k": args.k,
+        "backbone": args.backbone,
+        "quick": args.quick,
+        "scenarios_dir": tuple(args.scenarios_dir),
+        "record": not args.no_record,
+    }
 
 
 def execution_of(args) -> Execution:
@@ -99,17 +110,7 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     args = p.parse_args(argv)
     config = ExperimentConfig(
-        scenario=args.scenario,
-        methods=methods_of(args.methods),
-        seeds=args.seeds,
-        seed=args.seed,
-        epochs=args.epochs,
-        k=args.k,
-        backbone=args.backbone,
-        quick=args.quick,
-        settings=parse_settings(args.set),
-        scenarios_dir=tuple(args.scenarios_dir),
-        record=not args.no_record,
+        args.scenario, settings=parse_settings(args.set), **experiment_options(args)
     )
     execution = execution_of(args)
     out = output_folder(args.scenario, args.out, args.resume)

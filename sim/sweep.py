@@ -12,7 +12,7 @@ from __future__ import annotations
 import itertools
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +25,6 @@ from c2inet.files import write_atomic, write_text_atomic
 from sim.backends import run_jobs
 from sim.cli import parser
 from sim.experiment import (
-    DEFAULT_METHODS,
     Execution,
     ExperimentConfig,
     Job,
@@ -37,7 +36,7 @@ from sim.experiment import (
     run_job,
 )
 from sim.outputs import claim, run_root, write_outputs
-from sim.run import add_experiment_options, execution_of, methods_of
+from sim.run import add_experiment_options, execution_of, experiment_options
 from viz.cli import guarded
 
 COLUMNS = ("scenario", "method", "seed", "setting", "after_task", "on_task", "metric", "value")
@@ -45,19 +44,12 @@ COLUMNS = ("scenario", "method", "seed", "setting", "after_task", "on_task", "me
 
 @dataclass(frozen=True)
 class SweepConfig:
-    """The experiments of a sweep: every scenario with every combination of option values."""
+    """The experiments of a sweep: every scenario with every combination of option values,
+    each otherwise configured as ``base`` (whose scenario and settings are replaced)."""
 
+    base: ExperimentConfig
     scenarios: tuple[str, ...]
-    grid: dict[str, tuple[Any, ...]]  # "SCOPE.KEY" -> values
-    methods: tuple[str, ...] = DEFAULT_METHODS
-    seeds: int = 1
-    seed: int = 0
-    epochs: int | None = None
-    k: int | None = None
-    backbone: str = "stgat"
-    quick: bool = False
-    scenarios_dir: tuple[Path, ...] = ()
-    record: bool = True
+    grid: dict[str, tuple[Any, ...]] = field(default_factory=dict)  # "SCOPE.KEY" -> values
 
     def settings(self) -> list[tuple[str, dict[str, dict[str, Any]]]]:
         """Every combination of the grid's values: (label, settings by scope)."""
@@ -70,18 +62,17 @@ class SweepConfig:
 
     def experiments(self) -> list[tuple[str, ExperimentConfig]]:
         """(setting label, configuration) of every experiment, scenario by scenario."""
-        common = {k: v for k, v in asdict(self).items() if k not in ("scenarios", "grid")}
         return [
-            (label, ExperimentConfig(scenario, settings=settings, **common))
+            (label, replace(self.base, scenario=scenario, settings=settings))
             for scenario in self.scenarios
             for label, settings in self.settings()
         ]
 
     def to_json(self) -> dict[str, Any]:
         return {
-            **asdict(self),
+            "base": self.base.to_json(),
+            "scenarios": list(self.scenarios),
             "grid": {k: list(v) for k, v in self.grid.items()},
-            "scenarios_dir": [str(p) for p in self.scenarios_dir],
         }
 
 
@@ -204,19 +195,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     argv = sys.argv[1:] if argv is None else argv
     args = p.parse_args(argv)
-    sweep = SweepConfig(
-        scenarios=tuple(args.scenario),
-        grid=parse_grid(args.set),
-        methods=methods_of(args.methods),
-        seeds=args.seeds,
-        seed=args.seed,
-        epochs=args.epochs,
-        k=args.k,
-        backbone=args.backbone,
-        quick=args.quick,
-        scenarios_dir=tuple(args.scenarios_dir),
-        record=not args.no_record,
-    )
+    base = ExperimentConfig(args.scenario[0], **experiment_options(args))
+    sweep = SweepConfig(base, tuple(args.scenario), parse_grid(args.set))
     try:
         entries = run_sweep(
             sweep,

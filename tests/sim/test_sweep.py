@@ -8,6 +8,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from c2inet.errors import InputError
+from sim.experiment import ExperimentConfig
 from sim.sweep import COLUMNS, SweepConfig, parse_grid
 
 
@@ -67,12 +68,14 @@ def test_a_sweep_runs_the_cross_product_and_writes_tidy_results(tmp_path):
 
 def test_the_grid_is_a_product_of_typed_values():
     grid = parse_grid(["model.beta_c=0,1", "c2inet-online.pruning=true,false"])
-    sweep = SweepConfig(("crowd_noise_0.1",), grid, methods=("c2inet-online",), quick=True)
+    base = ExperimentConfig("crowd_noise_0.1", methods=("c2inet-online",), quick=True)
+    sweep = SweepConfig(base, ("crowd_noise_0.1", "crowd_noise_0.2"), grid)
     labels = [label for label, _ in sweep.settings()]
     assert len(labels) == 4 and "c2inet-online.pruning=False,model.beta_c=1" in labels
     experiments = sweep.experiments()
+    assert len(experiments) == 8 and experiments[-1][1].scenario == "crowd_noise_0.2"
     assert {e.settings["model"]["beta_c"] for _, e in experiments} == {0, 1}
     with pytest.raises(InputError, match="SCOPE.KEY=V1"):
         parse_grid(["model.beta_c"])
     with pytest.raises(InputError, match="not model, train"):
-        SweepConfig(("crowd_noise_0.1",), parse_grid(["ewc.strength=1"])).experiments()
+        SweepConfig(base, ("crowd_noise_0.1",), parse_grid(["ewc.strength=1"])).experiments()
