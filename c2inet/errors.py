@@ -3,9 +3,20 @@
 It lives in the learner, the lowest floor that raises it, so `viz` and `sim` share it without
 importing upwards."""
 
+from __future__ import annotations
+
+import difflib
+from collections.abc import Iterable
+
 
 class InputError(ValueError):
     """Bad user input (scenario, family TOML, knob value, data file, option).
 
     The message names the input and what is wrong; it is shown to the user as is.
     """
+
+
+def did_you_mean(name: str, known: Iterable[str]) -> str:
+    """``"; did you mean 'x'?"`` for the closest known name, or nothing when none is close."""
+    close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)
+    return f"; did you mean {close[0]!r}?" if close else ""

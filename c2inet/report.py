@@ -83,9 +83,10 @@ def table_rows(
         for variant in ["", *m.get("variants", [])]:
             key = f"{metric}_{variant}" if variant else metric
             fde = key.replace("ade", "fde", 1)
+            stds = m[f"avg_seen_{key}_std"] if m["seeds"] > 1 else [None] * len(labels)
             cells = [
-                f"{a:.3f}/{f:.3f}"
-                for a, f in zip(m[f"avg_seen_{key}"], m[f"avg_seen_{fde}"], strict=True)
+                f"{a:.3f}" + ("" if s is None else f"±{s:.3f}") + f"/{f:.3f}"
+                for a, s, f in zip(m[f"avg_seen_{key}"], stds, m[f"avg_seen_{fde}"], strict=True)
             ]
             final, worst = m[f"forgetting_final_{key}"], m[f"forgetting_worst_{key}"]
             label = f"{name}, {variant.replace('_', ' from ', 1)}" if variant else name
@@ -146,6 +147,19 @@ def diagnostics_table(diagnostics: list[dict[str, Any]], labels: list[str]) -> s
     return markdown_table(rows)
 
 
+def caption(k: int, seeds: int, metric: str = "ade") -> str:
+    """What the cells of :func:`table_rows` are, in a sentence."""
+    samples = f"best of K = {k} samples, the minimum taken per scene (joint)"
+    if metric == "ade_k1":
+        samples = "one sample (K = 1)"
+    spread = f"mean ± std of ADE over {seeds} seeds" if seeds > 1 else "one seed"
+    return (
+        f"ADE/FDE in metres, {samples}, averaged over the tasks seen so far after each task "
+        f"({spread}); forgetting of ADE in metres (final: final minus best earlier error; "
+        "worst: worst error after leaving a task minus the error right after it)."
+    )
+
+
 def text_table(methods: dict[str, dict[str, Any]], labels: list[str]) -> str:
     rows = table_rows(methods, labels)
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
@@ -159,13 +173,24 @@ def markdown_table(rows: list[list[str]]) -> str:
 
 
 def markdown_report(
-    scenario: str, labels: list[str], k: int, methods: dict[str, dict[str, Any]]
+    scenario: str,
+    labels: list[str],
+    k: int,
+    methods: dict[str, dict[str, Any]],
+    run: dict[str, Any] | None = None,
 ) -> str:
-    """The run's report: the Table-2-style summaries, then every method's matrices and
-    diagnostics."""
-    parts = [
-        f"# Continual run: `{scenario}`",
-        "",
+    """The run's report: how it ran (``run``: quick, epochs, seeds, wall_seconds), the
+    Table-2-style summaries, then every method's matrices and diagnostics."""
+    parts = [f"# Continual run: `{scenario}`", ""]
+    if run is not None:
+        kind = "**quick** (tiny sizes: a smoke test, not a result)" if run["quick"] else "full"
+        parts += [
+            f"Run: {kind}; {run['epochs']} epochs per task; {run['seeds']} seed(s) per method "
+            f"(cells are means; ± is the std over seeds); best of K = {k}; "
+            f"wall time {run['wall_seconds']:.0f} s.",
+            "",
+        ]
+    parts += [
         "Cells are ADE/FDE in metres averaged over the tasks seen so far after each task (the "
         "paper's Table 2). Forgetting of ADE, mean over tasks but the last: *final* is the final "
         "error minus the best earlier one (Chaudhry et al. 2018), *worst* the worst error after "

@@ -10,6 +10,8 @@ from __future__ import annotations
 import multiprocessing
 import signal
 from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any
 
 from c2inet.errors import InputError
@@ -26,9 +28,9 @@ def _start_worker(shared: tuple) -> None:
     _shared = shared
 
 
-def _call_in_worker(call: tuple[int, Callable, Any, dict]) -> tuple[int, Any]:
-    index, fn, job, options = call
-    return index, fn(job, *_shared, **options)
+def _call_in_worker(call: tuple[Callable, Any, dict]) -> Any:
+    fn, job, options = call
+    return fn(job, *_shared, **options)
 
 
 def run_jobs(
@@ -39,33 +41,44 @@ def run_jobs(
     processes: int = 1,
     ray_address: str | None = None,
     options: dict[str, Any] | None = None,
-    progress: Callable[[int], Any] | None = None,
+    progress: Callable[[str, dict], Any] | None = None,
     tasks_of: Callable[[Any], int] = lambda _job: 1,
 ) -> list[Any]:
     """``[fn(job, *shared, **options) for job in jobs]`` on ``backend``.
 
-    ``progress(n)`` is told of finished tasks: each task when jobs run in this process (``fn``
-    receives ``on_task``), a job's ``tasks_of(job)`` when it finishes elsewhere.
+    ``progress(event, data)`` follows the work: jobs run in this process pass it every trainer
+    event (``fn`` receives it as ``on_event``); a job that finishes elsewhere sends
+    ``("job_end", {"tasks": tasks_of(job)})``.
     """
     options = options or {}
-    progress = progress or (lambda _n: None)
+    progress = progress or (lambda _event, _data: None)
     if backend == "ray":
         return _run_on_ray(fn, jobs, shared, processes, ray_address, options, progress, tasks_of)
     if processes <= 1 or len(jobs) <= 1:
-        return [fn(job, *shared, **options, on_task=lambda: progress(1)) for job in jobs]
-    context = multiprocessing.get_context("spawn")  # torch and fork do not mix
-    pool = context.Pool(min(processes, len(jobs)), _start_worker, (shared,))
+        return [fn(job, *shared, **options, on_event=progress) for job in jobs]
+    pool = ProcessPoolExecutor(
+        min(processes, len(jobs)),
+        multiprocessing.get_context("spawn"),  # torch and fork do not mix
+        _start_worker,
+        (shared,),
+    )
     try:
+        futures = {
+            pool.submit(_call_in_worker, (fn, job, options)): i for i, job in enumerate(jobs)
+        }
         results: dict[int, Any] = {}
-        calls = [(i, fn, job, options) for i, job in enumerate(jobs)]
-        for index, result in pool.imap_unordered(_call_in_worker, calls):
-            results[index] = result
-            progress(tasks_of(jobs[index]))
-        pool.close()
+        for future in as_completed(futures):
+            index = futures[future]
+            try:
+                results[index] = future.result()
+            except BrokenProcessPool:
+                raise RuntimeError("a job process died (out of memory, or killed)") from None
+            progress("job_end", {"tasks": tasks_of(jobs[index])})
         return [results[i] for i in range(len(jobs))]
-    finally:
-        pool.terminate()  # on Ctrl-C or an error too: no worker outlives the driver
-        pool.join()
+    finally:  # on Ctrl-C or an error too: no worker outlives the driver
+        for process in list(pool._processes.values()):  # the executor offers no public way
+            process.terminate()
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _run_on_ray(fn, jobs, shared, processes, address, options, progress, tasks_of):
@@ -88,7 +101,7 @@ def _run_on_ray(fn, jobs, shared, processes, address, options, progress, tasks_o
             for ref in done:
                 index = pending.pop(ref)
                 results[index] = ray.get(ref)
-                progress(tasks_of(jobs[index]))
+                progress("job_end", {"tasks": tasks_of(jobs[index])})
         return [results[i] for i in range(len(jobs))]
     finally:
         ray.shutdown()

@@ -1,23 +1,44 @@
-"""What `sim`'s entry points share: the scenario options, workers and threads."""
+"""What `sim`'s entry points share: the scenario options, ``--list``, workers and threads."""
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 from pathlib import Path
 
+from c2inet.errors import InputError, did_you_mean
+from c2inet.methods.base import discover
+from sim.families import available_families, load_family
+from sim.generators import get_generator
 from viz.cli import bounded_int, plain_parser
 
+SCENARIO_HELP = """scenarios: FAMILY_VALUES, parts joined by '+'; VALUES is a..b (step from the
+decimals of a), a..b:step, or v1,v2,... (names for real-data families), e.g.
+  crowd_noise_0.1..0.6   crowd_density_0.05..0.30:0.05   eth_ucy_eth,hotel
+  crowd_noise_0.1..0.3+crowd_radius_0.2
+see what exists with --list families, --list methods, --list knobs FAMILY"""
 
-def parser(prog: str, description: str, scenarios: bool = False) -> argparse.ArgumentParser:
-    """An argument parser with the options every scenario entry point takes
-    (``scenarios``: ``--scenario`` may be repeated, and gives a list)."""
-    p = plain_parser(prog, description)
+
+def parser(
+    prog: str, description: str, examples: str = "", scenarios: bool = False
+) -> argparse.ArgumentParser:
+    """An argument parser with the options every scenario entry point takes, ``--list``, and
+    ``examples`` under the help (``scenarios``: ``--scenario`` may be repeated, giving a list).
+    Parse with :func:`parse`."""
+    p = plain_parser(prog, description.replace("``", ""))
+    p.formatter_class = argparse.RawDescriptionHelpFormatter
+    p.epilog = f"examples:\n{examples}\n\n{SCENARIO_HELP}" if examples else SCENARIO_HELP
     p.add_argument(
         "--scenario",
-        required=True,
         action="append" if scenarios else "store",
         help="curriculum, e.g. crowd_noise_0.1..0.6" + (" (repeatable)" if scenarios else ""),
+    )
+    p.add_argument(
+        "--list",
+        nargs="+",
+        metavar="WHAT",
+        help="print what exists and stop: families, methods, or knobs FAMILY",
     )
     p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
     p.add_argument(
@@ -49,3 +70,49 @@ def add_threads(p: argparse.ArgumentParser) -> None:
         default=1,
         help="torch intra-op threads (default 1; more only helps an otherwise idle machine)",
     )
+
+
+def parse(p: argparse.ArgumentParser, argv: list[str]) -> argparse.Namespace | None:
+    """Parse ``argv``; for ``--list``, print the listing and return None."""
+    args = p.parse_args(argv)
+    if args.list:
+        print(listing(args.list, args.scenarios_dir))
+        return None
+    if not args.scenario:
+        p.error("the following arguments are required: --scenario")
+    return args
+
+
+def listing(what: list[str], extra_dirs: list[Path]) -> str:
+    """The families, the methods, or one family's knobs, as plain text."""
+    kind, rest = what[0], what[1:]
+    families = available_families(extra_dirs)
+    if kind == "families" and not rest:
+        rows = []
+        for name, path in sorted(families.items()):
+            family = load_family(path)
+            sets = family.knob or "scene names: " + ",".join(family.value_names)
+            rows.append(f"{name:18} {family.generator:8} {sets:18} {family.description}")
+        return "\n".join(rows)
+    if kind == "methods" and not rest:
+        methods = discover()
+        lines = (f"{n:16} {(m.__doc__ or '').strip().splitlines()[0]}" for n, m in methods.items())
+        return "\n".join(sorted(lines))
+    if kind == "knobs" and len(rest) == 1:
+        name = rest[0]
+        if name not in families:
+            raise InputError(f"--list knobs {name}: unknown family{did_you_mean(name, families)}")
+        family = load_family(families[name])
+        sets = family.knob or "the files of each scene name"
+        lines = [
+            f"family {name}: generator {family.generator}; the scenario's values set {sets}",
+            "knobs (the family's default, else the generator's); change with --set data.KNOB=V",
+        ]
+        for f in dataclasses.fields(get_generator(family.generator).Knobs):
+            default = family.defaults.get(f.name, f.default)
+            mark = "  <- the scenario's values" if f.name == family.knob else ""
+            lines.append(f"  {f.name:16} {default!r}{mark}")
+        splits = dataclasses.asdict(family.splits)
+        lines.append(f"scenes per split: {splits} (--set data.splits.train=N, ...)")
+        return "\n".join(lines)
+    raise InputError(f"--list {' '.join(what)}: expected families, methods, or knobs FAMILY")

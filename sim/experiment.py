@@ -28,7 +28,7 @@ import torch
 from tqdm import tqdm
 
 from c2inet.backbones import BACKBONES
-from c2inet.errors import InputError
+from c2inet.errors import InputError, did_you_mean
 from c2inet.files import write_atomic, write_text_atomic
 from c2inet.methods.base import build_options, get_method
 from c2inet.model import ModelConfig
@@ -36,10 +36,13 @@ from c2inet.trainer import ContinualTrainer, Result, Task, TrainConfig
 from sim.backends import BACKENDS, run_jobs
 from sim.data import SPLITS, cut_windows, window_members
 from sim.domains import build_domain, rollout_scene
+from sim.estimate import describe, run_seconds
 from sim.families import Splits
 from sim.generators import get_generator
 from sim.outputs import claim, output_folder, write_outputs
 from sim.scenario import DomainSpec, parse_scenario
+from viz.colours import method_colour
+from viz.loggers import LOGGERS, make_loggers
 from viz.observer import RecordingObserver, Showcase, log_truth
 from viz.recording import RunRecorder, default_blueprint
 
@@ -77,7 +80,7 @@ class ExperimentConfig:
         fill(self, "scenarios_dir", tuple(Path(p) for p in self.scenarios_dir))
         fill(self, "epochs", self.epochs if self.epochs is not None else (2 if self.quick else 20))
         fill(self, "k", self.k if self.k is not None else (5 if self.quick else 20))
-        parse_scenario(self.scenario, list(self.scenarios_dir))  # a bad scenario fails here
+        self.specs()  # a bad scenario or data override fails here
         if not self.methods:
             raise InputError("methods: no method named")
         if len(set(self.methods)) != len(self.methods):
@@ -90,8 +93,10 @@ class ExperimentConfig:
         if self.backbone not in BACKBONES:
             raise InputError(f"backbone {self.backbone!r}: expected one of {sorted(BACKBONES)}")
         for scope in self.settings:
-            if scope not in ("model", "train", *self.methods):
-                raise InputError(f"--set: scope {scope!r} is not model, train or a chosen method")
+            if scope not in ("data", "model", "train", *self.methods):
+                raise InputError(
+                    f"--set: scope {scope!r} is not data, model, train or a chosen method"
+                )
         for name, value, low in (
             ("seeds", self.seeds, 1),
             ("epochs", self.epochs, 0),
@@ -106,6 +111,10 @@ class ExperimentConfig:
                 self.method(name)
         except ValueError as error:
             raise InputError(f"--set: {error}") from None
+
+    def specs(self) -> list[DomainSpec]:
+        """The curriculum's domains, with the ``data`` settings applied to their knobs."""
+        return parse_scenario(self.scenario, list(self.scenarios_dir), self.settings.get("data"))
 
     def model_config(self) -> ModelConfig:
         return build_options(
@@ -143,8 +152,15 @@ class Execution:
     workers: int = os.cpu_count() or 1
     cache: Path = Path(".cache/domains")
     rerun: str | None = None
+    loggers: tuple[str, ...] = ()  # csv, tensorboard: per job, beside its checkpoints
 
     def __post_init__(self):
+        object.__setattr__(self, "loggers", tuple(self.loggers))
+        object.__setattr__(self, "cache", Path(self.cache))
+        for name in self.loggers:
+            if name not in LOGGERS:
+                hint = did_you_mean(name, LOGGERS)
+                raise InputError(f"--logger {name!r}: unknown{hint} (known: {', '.join(LOGGERS)})")
         if self.backend not in BACKENDS:
             raise InputError(f"--backend {self.backend!r}: expected one of {', '.join(BACKENDS)}")
         if (
@@ -262,9 +278,25 @@ def make_showcases(specs: list[DomainSpec], tasks: list[Task], seed: int) -> tup
     return showcases, rollouts
 
 
+def learner_tasks(
+    scenario: str,
+    seed: int = 0,
+    quick: bool = False,
+    data: dict[str, Any] | None = None,
+    cache: Path | None = Path(".cache/domains"),
+    scenarios_dir: tuple[Path, ...] = (),
+) -> list[Task]:
+    """The learner's tasks of a scenario, one per domain, generated or read from ``cache``.
+
+    ``data`` overrides knobs or split sizes, as ``--set data.KEY=VALUE`` does.
+    """
+    specs = parse_scenario(scenario, list(scenarios_dir), data)
+    return make_tasks(specs, seed, quick, cache, os.cpu_count() or 1)[0]
+
+
 def prepare(config: ExperimentConfig, execution: Execution) -> Curriculum:
     """Generate (or read from the content-hashed cache) every domain of the curriculum."""
-    specs = parse_scenario(config.scenario, list(config.scenarios_dir))
+    specs = config.specs()
     tasks, domains = make_tasks(
         specs, config.seed, config.quick, execution.cache, execution.workers
     )
@@ -326,7 +358,8 @@ def run_job(
     threads: int = 1,
     resume: bool = False,
     live: str | None = None,
-    on_task: Callable[[], None] | None = None,
+    loggers: tuple[str, ...] = (),
+    on_event: Callable[[str, dict], None] | None = None,
 ) -> JobResult:
     """Train one method with one seed through the curriculum, in ``job.folder(out)``.
 
@@ -338,15 +371,23 @@ def run_job(
     folder = job.folder(out)
     if resume and (folder / "result.json").exists():
         return JobResult.load(job, folder)
-    observers = []
-    if on_task is not None:
-        observers.append(lambda event, _: on_task() if event == "task_end" else None)
+    observers = [] if on_event is None else [on_event]
+    names = [t.name for t in inputs.tasks]
+    logs = make_loggers(loggers, folder, config.epochs, names)
+    observers += logs
     recorder = drawing = None
     if (config.record or live) and job.seed_index == 0:  # the first seed is drawn
         partial = folder / "recording.partial.rrd" if config.record else None
         recorder = RunRecorder.create(APP_ID, recording_id(config), partial, live, None)
+        colour = method_colour(config.methods.index(job.method))
         drawing = RecordingObserver(
-            recorder, job.method, inputs.showcases, config.k, seed=config.seed
+            recorder,
+            job.method,
+            inputs.showcases,
+            config.k,
+            config.epochs,
+            colour,
+            seed=config.seed,
         )
         observers.append(drawing)
     trainer = ContinualTrainer(
@@ -355,9 +396,11 @@ def run_job(
         config.train_config(job.seed_index),
         checkpoint_dir=folder / "checkpoints",
         observers=observers,
-        progress=None if on_task is None else _epoch_bar,
+        progress=None if on_event is None else _epoch_bar,
     )
     result = JobResult(job, trainer.run(resume=resume))
+    for log in logs:
+        log.close()
     if recorder is not None:
         recorder.close()
         if partial is not None:
@@ -371,12 +414,28 @@ def _epoch_bar(iterable, **options):
     return tqdm(iterable, file=sys.stderr, unit="epoch", **options)
 
 
+def follow(bar: tqdm) -> Callable[[str, dict], None]:
+    """A ``progress`` for ``run_jobs``: the tasks bar moves with finished tasks (its estimate of
+    the time left is the whole run's) and shows the newest epoch's training loss."""
+
+    def update(event: str, data: dict) -> None:
+        if event == "task_end":
+            bar.update(1)
+        elif event == "job_end":
+            bar.update(data["tasks"])
+        elif event == "epoch_end" and "nll" in data:
+            bar.set_postfix_str(f"loss {data['nll']:.3f}", refresh=False)
+
+    return update
+
+
 def record_truth(config: ExperimentConfig, curriculum: Curriculum, path: Path, live: str | None):
     """The run's own recording: the blueprint, the domains and the ground truth."""
     tasks = [t.name for t in curriculum.inputs.tasks]
     recorder = RunRecorder.create(
         APP_ID, recording_id(config), path, live, default_blueprint(tasks, SAMPLE_SCENES)
     )
+    recorder.log_legend(list(config.methods))
     for domain in curriculum.domains:
         recorder.log_domain(domain.name, domain.knobs, domain.stats)
     log_truth(recorder, curriculum.inputs.showcases, curriculum.rollouts)
@@ -410,6 +469,13 @@ def run_experiment(
         truth = record_truth(config, curriculum, path, execution.rerun)
     jobs = config.jobs()
     tasks = len(curriculum.inputs.tasks)
+    if not resume:
+        estimate = run_seconds(config, curriculum.inputs.tasks, execution.jobs)
+        print(
+            f"{len(jobs)} jobs x {tasks} tasks, {execution.jobs} at a time: about "
+            f"{describe(estimate)} of training and evaluation (timed on this machine)",
+            file=sys.stderr,
+        )
     with tqdm(total=len(jobs) * tasks, desc="tasks", unit="task", file=sys.stderr) as bar:
         results = run_jobs(
             run_job,
@@ -422,8 +488,9 @@ def run_experiment(
                 "threads": execution.threads,
                 "resume": resume,
                 "live": execution.live_target(),
+                "loggers": execution.loggers,
             },
-            progress=bar.update,
+            progress=follow(bar),
             tasks_of=lambda _job: tasks,
         )
     wall = time.perf_counter() - started

@@ -20,16 +20,19 @@ from __future__ import annotations
 
 import dataclasses
 import re
+import sys
 import tomllib
 from dataclasses import dataclass, field
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from c2inet.errors import InputError
+from c2inet.errors import InputError, did_you_mean
 from sim.generators import get_generator
 from sim.options import build
 
-SCENARIOS_DIR = Path(__file__).resolve().parent.parent / "scenarios"
+# the built-in families (and the real data they read) ship inside the package
+SCENARIOS_DIR = Path(str(resources.files("sim").joinpath("scenarios")))
 _FAMILY_NAME = re.compile(r"^[a-z][a-z0-9_]*$")
 
 
@@ -79,8 +82,12 @@ class Family:
         return generator.resolve(knobs, self.path.parent)
 
 
+_noticed: set[Path] = set()  # built-in families replaced by a user's copy, said once
+
+
 def available_families(extra_dirs: list[Path]) -> dict[str, Path]:
-    """Family name -> TOML path; user folders come after (and may not shadow) the built-in one."""
+    """Family name -> TOML path. A user folder's family replaces a built-in one of the same
+    name (a copy to tweak), with a notice; two user folders may not define the same family."""
     found: dict[str, Path] = {}
     for folder in [SCENARIOS_DIR, *extra_dirs]:
         folder = Path(folder)
@@ -89,10 +96,13 @@ def available_families(extra_dirs: list[Path]) -> dict[str, Path]:
         for path in sorted(folder.glob("*.toml")):
             if not _FAMILY_NAME.match(path.stem):
                 raise InputError(f"{path}: family names use a-z, 0-9 and '_' only")
-            if path.stem in found and found[path.stem] != path:
-                raise InputError(
-                    f"{path}: family {path.stem!r} is already defined in {found[path.stem]}"
-                )
+            before = found.get(path.stem)
+            if before is not None and before != path:
+                if before.parent.resolve() != SCENARIOS_DIR.resolve():
+                    raise InputError(f"{path}: family {path.stem!r} is already defined in {before}")
+                if path not in _noticed:
+                    _noticed.add(path)
+                    print(f"notice: {path} replaces the built-in {path.stem}", file=sys.stderr)
             found[path.stem] = path
     return found
 
@@ -109,7 +119,8 @@ def load_family(path: Path) -> Family:
     unknown = sorted(set(raw) - _FAMILY_KEYS)
     if unknown:
         raise InputError(
-            f"{path}: unknown key {unknown[0]!r} (allowed: {', '.join(sorted(_FAMILY_KEYS))})"
+            f"{path}: unknown key {unknown[0]!r}{did_you_mean(unknown[0], _FAMILY_KEYS)} "
+            f"(allowed: {', '.join(sorted(_FAMILY_KEYS))})"
         )
     if "generator" not in raw:
         raise InputError(f"{path}: missing key 'generator'")

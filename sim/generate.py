@@ -13,7 +13,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from c2inet.files import write_text_atomic
-from sim.cli import add_workers, parser
+from sim.cli import add_workers, parse, parser
 from sim.data import SPLITS, Domain
 from sim.domains import build_domain
 from sim.io import write_ethucy, write_npz, write_parquet
@@ -36,6 +36,11 @@ def domain_summary(domain: Domain) -> dict:
     }
 
 
+def _stat(value) -> str:
+    """A statistic as printed: 3 decimals, or '-' where a domain has none (real-data overlaps)."""
+    return "-" if value is None else f"{value:.3f}" if isinstance(value, float) else str(value)
+
+
 def format_table(domains: list[Domain], knob_names: list[str]) -> str:
     """A fixed-width table of domains, their varied knobs and realised statistics."""
     header = ["domain", *knob_names, "train/val/test", *STAT_COLUMNS]
@@ -43,10 +48,7 @@ def format_table(domains: list[Domain], knob_names: list[str]) -> str:
     for d in domains:
         knobs = [str(d.knobs.get(k, "")) for k in knob_names]
         sizes = "/".join(str(len(d.scenes[s])) for s in SPLITS)
-        stats = [
-            f"{d.stats[c]:.3f}" if isinstance(d.stats[c], float) else str(d.stats[c])
-            for c in STAT_COLUMNS
-        ]
+        stats = [_stat(d.stats.get(c)) for c in STAT_COLUMNS]
         rows.append([d.name, *knobs, sizes, *stats])
     widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header))]
     return "\n".join(
@@ -63,11 +65,19 @@ WRITERS = {
 
 @guarded
 def main(argv: list[str] | None = None) -> int:
-    p = parser("sim.generate", __doc__.splitlines()[0])
-    p.add_argument("--out", type=Path, required=True, help="output folder")
+    examples = (
+        "  python -m sim.generate --scenario crowd_radius_0.1..0.6 --out out/radius\n"
+        "  python -m sim.generate --scenario eth_ucy_eth,hotel --out out/eth --format npz"
+    )
+    p = parser("sim.generate", __doc__.splitlines()[0], examples)
+    p.add_argument("--out", type=Path, help="output folder (required)")
     p.add_argument("--format", choices=sorted(WRITERS), default="parquet")
     add_workers(p)
-    args = p.parse_args(argv)
+    args = parse(p, sys.argv[1:] if argv is None else argv)
+    if args is None:
+        return 0
+    if args.out is None:
+        p.error("the following arguments are required: --out")
     curriculum = parse_scenario(args.scenario, args.scenarios_dir)
     domains = []
     for spec in tqdm(curriculum, desc="domains", unit="domain", file=sys.stderr):

@@ -8,7 +8,7 @@ import types
 import typing
 from typing import Any, TypeVar
 
-from c2inet.errors import InputError
+from c2inet.errors import InputError, did_you_mean
 
 T = TypeVar("T")
 
@@ -58,7 +58,8 @@ def build(cls: type[T], mapping: dict[str, Any], where: str) -> T:
     unknown = sorted(set(mapping) - fields)
     if unknown:
         raise InputError(
-            f"{where}: unknown key {unknown[0]!r} (allowed: {', '.join(sorted(fields))})"
+            f"{where}: unknown key {unknown[0]!r}{did_you_mean(unknown[0], fields)} "
+            f"(allowed: {', '.join(sorted(fields))})"
         )
     values = {key: _coerce(value, hints[key], where, key) for key, value in mapping.items()}
     try:

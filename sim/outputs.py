@@ -204,10 +204,14 @@ def write_outputs(
         "windows": {t.name: _window_counts(t) for t in curriculum.inputs.tasks},
     }
     write_text_atomic(out / "run_card.json", json.dumps(run_card, indent=1) + "\n")
-    report = markdown_report(config.scenario, labels, config.k, summary)
+    run = {"quick": config.quick, "epochs": config.epochs, "seeds": config.seeds}
+    run["wall_seconds"] = wall
+    report = markdown_report(config.scenario, labels, config.k, summary, run)
     write_text_atomic(out / "report.md", report)
+    families = [s.family.name for s in curriculum.specs]
     for name, result in summary.items():
-        figures.error_matrix(name, result["ade"], labels, out / "figures" / f"matrix_{name}.png")
+        matrix = out / "figures" / f"matrix_{name}.png"
+        figures.error_matrix(name, result["ade"], labels, matrix, families)
         figures.per_task(name, result["ade"], labels, out / "figures" / f"per_task_{name}.png")
     figures.average_seen(summary, labels, out / "figures" / "average_seen.png")
     drawn = {r.job.method: r.predictions for r in results if r.predictions}

@@ -12,9 +12,9 @@ import time
 from pathlib import Path
 
 from c2inet.backbones import BACKBONES
-from c2inet.report import text_table
+from c2inet.report import caption, text_table
 from sim.backends import BACKENDS
-from sim.cli import add_threads, add_workers, parser
+from sim.cli import add_threads, add_workers, parse, parser
 from sim.experiment import (
     DEFAULT_METHODS,
     Execution,
@@ -26,6 +26,13 @@ from sim.outputs import output_folder
 from viz.cli import bounded_int, guarded
 
 INTERRUPTED = 130  # the shell's code for a run stopped by Ctrl-C
+EXAMPLES = """\
+  python -m sim.run --scenario crowd_noise_0.1..0.6
+  python -m sim.run --scenario crowd_radius_0.1..0.6 --methods c2inet-online,ewc,finetune \\
+      --seeds 3 --jobs 2
+  python -m sim.run --scenario crowd_noise_0.1..0.3 --quick --set c2inet-online.pruning=false \\
+      --set data.agents=6
+  python -m sim.run --scenario crowd_noise_0.1..0.6 --resume   # continue the latest run"""
 
 
 def add_experiment_options(p) -> None:
@@ -60,6 +67,11 @@ def add_experiment_options(p) -> None:
     add_workers(p)
     add_threads(p)
     p.add_argument("--no-record", action="store_true", help="do not write recording.rrd")
+    p.add_argument(
+        "--logger",
+        default="",
+        help="also log every job's curves: csv, tensorboard or both (comma-separated)",
+    )
 
 
 def experiment_options(args) -> dict:
@@ -86,12 +98,13 @@ def execution_of(args) -> Execution:
         workers=args.workers,
         cache=args.cache,
         rerun=getattr(args, "rerun", None),
+        loggers=tuple(n.strip() for n in args.logger.split(",") if n.strip()),
     )
 
 
 @guarded
 def main(argv: list[str] | None = None) -> int:
-    p = parser("sim.run", __doc__.splitlines()[0])
+    p = parser("sim.run", __doc__.splitlines()[0], EXAMPLES)
     add_experiment_options(p)
     p.add_argument("--out", type=Path, help="output folder (default runs/<scenario>/<timestamp>)")
     p.add_argument(
@@ -108,7 +121,9 @@ def main(argv: list[str] | None = None) -> int:
         "rerun+http://127.0.0.1:9876/proxy)",
     )
     argv = sys.argv[1:] if argv is None else argv
-    args = p.parse_args(argv)
+    args = parse(p, argv)
+    if args is None:
+        return 0
     config = ExperimentConfig(
         args.scenario, settings=parse_settings(args.set), **experiment_options(args)
     )
@@ -128,6 +143,7 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return INTERRUPTED
+    print(caption(config.k, config.seeds))
     print(text_table(metrics["methods"], metrics["labels"]))
     print(f"wall time {time.perf_counter() - started:.0f} s; wrote {out}")
     return 0

@@ -1,18 +1,19 @@
 """The scenario language: ``FAMILY_VALUES`` parts joined by ``+`` become an ordered curriculum.
 
 VALUES is ``a..b`` (step from the decimals of ``a``), ``a..b:step`` or ``v1,v2,...``. FAMILY is
-the stem of a TOML file in ``scenarios/`` or in an extra folder given by the user; name-valued
+the stem of a TOML file in ``sim/scenarios/`` or in an extra folder given by the user; name-valued
 families (real data) take names instead of numbers.
 """
 
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from decimal import Decimal, InvalidOperation
 from pathlib import Path
+from typing import Any
 
-from c2inet.errors import InputError
+from c2inet.errors import InputError, did_you_mean
 from sim.families import Family, available_families, load_family
 
 MAX_DOMAINS = 64
@@ -74,7 +75,10 @@ def _numeric_values(values: str, part: str) -> list[tuple[float, str]]:
     out = []
     for item in items:
         if not re.fullmatch(_NUMBER, item):
-            raise InputError(f"scenario part {part!r}: {item!r} is not a number")
+            hint = ""
+            if re.fullmatch(rf"{_NUMBER}-{_NUMBER}", item):
+                hint = f" (a range is written {item.replace('-', '..', 1)})"
+            raise InputError(f"scenario part {part!r}: {item!r} is not a number{hint}")
         out.append((float(_number(item, part)), item))
     return out
 
@@ -84,24 +88,55 @@ def _split_family(part: str, families: dict[str, Path]) -> tuple[str, str]:
     for name in sorted(families, key=len, reverse=True):
         if part.startswith(name + "_") and len(part) > len(name) + 1:
             return name, part[len(name) + 1 :]
-    known = ", ".join(sorted(families)) or "none"
-    raise InputError(f"scenario part {part!r}: unknown family (known families: {known})")
+    if part.rstrip("_") in families:
+        raise InputError(
+            f"scenario part {part!r}: family {part.rstrip('_')!r} needs values, "
+            f"e.g. {part.rstrip('_')}_0.1..0.3 (python -m sim.run --list knobs FAMILY)"
+        )
+    guess = part.rsplit("_", 1)[0] if "_" in part else part
+    raise InputError(
+        f"scenario part {part!r}: unknown family{did_you_mean(guess, families)} "
+        f"(known families: {', '.join(sorted(families)) or 'none'})"
+    )
 
 
-def parse_scenario(scenario: str, extra_dirs: list[Path] | None = None) -> list[DomainSpec]:
+def with_overrides(family: Family, overrides: dict[str, Any]) -> Family:
+    """``family`` with knob defaults and split sizes replaced (``splits.NAME`` keys)."""
+    if not overrides:
+        return family
+    splits = {k.removeprefix("splits."): v for k, v in overrides.items() if k.startswith("splits.")}
+    knobs = {k: v for k, v in overrides.items() if not k.startswith("splits.")}
+    if family.knob in knobs:
+        raise InputError(f"--set data.{family.knob}: that knob is what {family.name}'s values set")
+    unknown = sorted(set(splits) - {"train", "val", "test"})
+    if unknown:
+        raise InputError(f"--set data.splits.{unknown[0]}: expected splits.train, .val or .test")
+    try:
+        sizes = replace(family.splits, **{k: int(v) for k, v in splits.items()})
+    except (TypeError, ValueError):
+        raise InputError(f"--set data.splits: sizes must be integers, got {splits}") from None
+    return replace(family, defaults={**family.defaults, **knobs}, splits=sizes)
+
+
+def parse_scenario(
+    scenario: str, extra_dirs: list[Path] | None = None, overrides: dict[str, Any] | None = None
+) -> list[DomainSpec]:
     """Parse a scenario string into an ordered curriculum of domain specs.
 
-    Raises :class:`InputError` for anything malformed; never anything else.
+    ``overrides`` change every family's knob defaults (``{"agents": 6}``) or scenes per split
+    (``{"splits.train": 100}``), as ``--set data.KEY=VALUE`` gives them; they become part of
+    each domain's knobs, so of its hash. Raises :class:`InputError` for anything malformed;
+    never anything else.
     """
     if not isinstance(scenario, str) or not scenario.strip():
         raise InputError("scenario: empty; expected FAMILY_VALUES, e.g. crowd_noise_0.1..0.6")
     families = available_families(extra_dirs or [])
     curriculum: list[DomainSpec] = []
-    for part in scenario.strip().split("+"):
+    for part in (p.strip() for p in scenario.strip().split("+")):
         if not part:
             raise InputError(f"scenario {scenario!r}: empty part between '+' signs")
         name, values = _split_family(part, families)
-        family = load_family(families[name])
+        family = with_overrides(load_family(families[name]), overrides or {})
         if family.value_names:
             labels = values.split(",")
             for label in labels:

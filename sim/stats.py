@@ -29,12 +29,9 @@ def motion_stats(scenes: list[Scene], dt: float) -> dict[str, float]:
     }
 
 
-def proximity_stats(scenes: list[Scene], contact: float) -> dict[str, float]:
-    """Minimum inter-agent distance (m) and the number of overlapping agent pairs.
-
-    A pair overlaps in a frame when its centres are closer than ``contact`` (the sum of the two
-    radii); pairs are counted once per recorded frame.
-    """
+def proximity_stats(scenes: list[Scene], contact: float | None = None) -> dict[str, float]:
+    """Minimum inter-agent distance (m) and, given a ``contact`` distance (the sum of the two
+    radii), the number of overlapping agent pairs, counted once per recorded frame."""
     smallest, overlaps = np.inf, 0
     for scene in scenes:
         for frame in scene.positions:
@@ -44,9 +41,7 @@ def proximity_stats(scenes: list[Scene], contact: float) -> dict[str, float]:
             tree = cKDTree(points)
             distance, _ = tree.query(points, k=2)
             smallest = min(smallest, float(distance[:, 1].min()))
-            if contact > 0:
+            if contact is not None:
                 overlaps += len(tree.query_pairs(contact, output_type="ndarray"))
-    return {
-        "min_separation": float(smallest) if np.isfinite(smallest) else 0.0,
-        "overlaps": overlaps,
-    }
+    out = {"min_separation": float(smallest) if np.isfinite(smallest) else 0.0}
+    return out if contact is None else {**out, "overlaps": overlaps}

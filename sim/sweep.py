@@ -23,12 +23,13 @@ from tqdm import tqdm
 from c2inet.errors import InputError
 from c2inet.files import write_atomic, write_text_atomic
 from sim.backends import run_jobs
-from sim.cli import parser
+from sim.cli import parse, parser
 from sim.experiment import (
     Execution,
     ExperimentConfig,
     Job,
     JobResult,
+    follow,
     parse_settings,
     parse_value,
     prepare,
@@ -151,7 +152,12 @@ def run_sweep(
         planned.append((label, config, folder, prepare(config, execution)))
     items = [(i, job) for i, (_, config, _, _) in enumerate(planned) for job in config.jobs()]
     shared = [(config, curriculum.inputs, folder) for _, config, folder, curriculum in planned]
-    options = {"threads": execution.threads, "resume": resume, "live": None}
+    options = {
+        "threads": execution.threads,
+        "resume": resume,
+        "live": None,
+        "loggers": execution.loggers,
+    }
     tasks = [len(curriculum.inputs.tasks) for *_, curriculum in planned]
     with tqdm(total=sum(tasks[i] for i, _ in items), desc="tasks", file=sys.stderr) as bar:
         results = run_jobs(
@@ -162,7 +168,7 @@ def run_sweep(
             execution.jobs,
             execution.ray_address,
             options,
-            bar.update,
+            follow(bar),
             lambda item: tasks[item[0]],
         )
     wall = time.perf_counter() - started
@@ -183,9 +189,14 @@ def run_sweep(
 
 @guarded
 def main(argv: list[str] | None = None) -> int:
-    p = parser("sim.sweep", __doc__.splitlines()[0], scenarios=True)
+    examples = (
+        "  python -m sim.sweep --scenario crowd_noise_0.1..0.6 \\\n"
+        "      --scenario crowd_radius_0.1..0.6 --methods c2inet-online,finetune --seeds 3 \\\n"
+        "      --set train.lr=0.003,0.001 --jobs 2 --out sweeps/lr"
+    )
+    p = parser("sim.sweep", __doc__.splitlines()[0], examples, scenarios=True)
     add_experiment_options(p)
-    p.add_argument("--out", type=Path, required=True, help="the sweep's folder")
+    p.add_argument("--out", type=Path, help="the sweep's folder (required)")
     p.add_argument(
         "--set",
         action="append",
@@ -194,7 +205,11 @@ def main(argv: list[str] | None = None) -> int:
         help="an option and the values to sweep, e.g. model.beta_c=0,1 (repeatable: product)",
     )
     argv = sys.argv[1:] if argv is None else argv
-    args = p.parse_args(argv)
+    args = parse(p, argv)
+    if args is None:
+        return 0
+    if args.out is None:
+        p.error("the following arguments are required: --out")
     base = ExperimentConfig(args.scenario[0], **experiment_options(args))
     sweep = SweepConfig(base, tuple(args.scenario), parse_grid(args.set))
     try:

@@ -10,9 +10,11 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
 
 from c2inet.data import Windows  # noqa: E402
 from c2inet.files import write_atomic  # noqa: E402
+from viz.colours import FUTURE, OBSERVED, as_matplotlib, method_colour  # noqa: E402
 
 
 def _save(fig, path: Path) -> Path:
@@ -21,11 +23,28 @@ def _save(fig, path: Path) -> Path:
     return path
 
 
-def error_matrix(name: str, matrix: list[list[float]], labels: list[str], path: Path) -> Path:
-    """Heat map of R[i][j]: ADE on task j after training through task i."""
+def error_matrix(
+    name: str,
+    matrix: list[list[float]],
+    labels: list[str],
+    path: Path,
+    families: list[str] | None = None,
+) -> Path:
+    """Heat map of R[i][j]: ADE on task j after training through task i.
+
+    With tasks of several ``families`` (one per column), each family's columns get a colour
+    scale of their own, so metres of traffic error do not wash out metres of crowd error.
+    """
     data = np.array(matrix, dtype=float)
     fig, ax = plt.subplots(figsize=(1.1 * len(labels) + 2, 0.9 * len(labels) + 1.5))
-    image = ax.imshow(data, cmap="viridis")
+    mixed = families is not None and len(set(families)) > 1
+    shade = data.copy()
+    for family in set(families) if mixed else ():
+        columns = [j for j, f in enumerate(families) if f == family]
+        block = data[:, columns]
+        low, high = np.nanmin(block), np.nanmax(block)
+        shade[:, columns] = (block - low) / (high - low) if high > low else 0.5
+    image = ax.imshow(shade, cmap="viridis")
     for i in range(len(labels)):
         for j in range(len(labels)):
             ax.text(j, i, f"{data[i, j]:.2f}", ha="center", va="center", color="w", fontsize=8)
@@ -33,8 +52,11 @@ def error_matrix(name: str, matrix: list[list[float]], labels: list[str], path: 
     ax.set_yticks(range(len(labels)), labels)
     ax.set_xlabel("evaluated on task")
     ax.set_ylabel("after training through task")
-    ax.set_title(f"{name}: ADE (m)")
-    fig.colorbar(image, ax=ax)
+    if mixed:
+        ax.set_title(f"{name}: ADE (m); colour scaled per family, low to high")
+    else:
+        ax.set_title(f"{name}: ADE (m)")
+        fig.colorbar(image, ax=ax, label="ADE (m)")
     return _save(fig, path)
 
 
@@ -53,13 +75,16 @@ def per_task(name: str, matrix: list[list[float]], labels: list[str], path: Path
 
 
 def average_seen(methods: dict[str, dict[str, Any]], labels: list[str], path: Path) -> Path:
-    """ADE averaged over the tasks seen so far, every method on one plot (Table 2 as curves)."""
+    """ADE averaged over the tasks seen so far, every method on one plot (Table 2 as curves),
+    in the methods' colours, with a band of one std over seeds."""
     fig, ax = plt.subplots(figsize=(6, 4))
-    for name, m in methods.items():
+    for index, (name, m) in enumerate(methods.items()):
         mean, std = np.array(m["avg_seen_ade"]), np.array(m.get("avg_seen_ade_std", 0.0))
-        ax.plot(range(len(mean)), mean, marker="o", label=name)
-        ax.fill_between(range(len(mean)), mean - std, mean + std, alpha=0.15)
+        colour = as_matplotlib(method_colour(index))
+        ax.plot(range(len(mean)), mean, marker="o", label=name, color=colour)
+        ax.fill_between(range(len(mean)), mean - std, mean + std, alpha=0.15, color=colour)
     ax.set_xticks(range(len(labels)), [labels[0], *(":" + lab for lab in labels[1:])])
+    ax.set_xlabel("after training through task (:x = averaged over the tasks up to x)")
     ax.set_ylabel("average ADE over seen tasks (m)")
     ax.legend(fontsize=8)
     return _save(fig, path)
@@ -70,13 +95,19 @@ def prediction_grid(
 ) -> Path:
     """Rows: methods; columns: tasks; the first sample scene of each (the paper's Fig 8).
 
-    Grey: observed, green: truth, red: predicted samples.
+    Grey: observed, green: truth, the method's colour: its K predicted samples. A bar in each
+    panel gives the scale; the legend says what the colours are.
     """
     methods, tasks = list(predictions), list(samples)
     fig, axes = plt.subplots(
-        len(methods), len(tasks), figsize=(2.6 * len(tasks), 2.6 * len(methods)), squeeze=False
+        len(methods),
+        len(tasks),
+        figsize=(2.6 * len(tasks), 2.6 * len(methods) + 0.6),
+        squeeze=False,
     )
+    observed, future = as_matplotlib(OBSERVED), as_matplotlib(FUTURE)
     for r, method in enumerate(methods):
+        colour = as_matplotlib(method_colour(r))
         for c, task in enumerate(tasks):
             ax, windows = axes[r, c], samples[task]
             agents = slice(0, windows.scene_start[1])
@@ -85,14 +116,35 @@ def prediction_grid(
             for a in range(pos.shape[0]):
                 for k in range(pred.shape[0]):
                     path_k = np.vstack([pos[a, obs - 1], pred[k, a]])
-                    ax.plot(path_k[:, 0], path_k[:, 1], color="tab:red", alpha=0.25, lw=0.8)
-                ax.plot(pos[a, :obs, 0], pos[a, :obs, 1], color="grey", lw=1.5)
-                ax.plot(pos[a, obs - 1 :, 0], pos[a, obs - 1 :, 1], color="tab:green", lw=1.5)
+                    ax.plot(path_k[:, 0], path_k[:, 1], color=colour, alpha=0.3, lw=0.8)
+                ax.plot(pos[a, :obs, 0], pos[a, :obs, 1], color=observed, lw=1.5)
+                ax.plot(pos[a, obs - 1 :, 0], pos[a, obs - 1 :, 1], color=future, lw=1.5)
             ax.set_aspect("equal")
             ax.set_xticks([])
             ax.set_yticks([])
+            _scale_bar(ax)
             if r == 0:
                 ax.set_title(task, fontsize=8)
             if c == 0:
                 ax.set_ylabel(method, fontsize=8)
+    handles = [
+        Line2D([], [], color=observed, lw=1.5, label="observed"),
+        Line2D([], [], color=future, lw=1.5, label="true future"),
+        *(
+            Line2D([], [], color=as_matplotlib(method_colour(i)), lw=1.5, label=m)
+            for i, m in enumerate(methods)
+        ),
+    ]
+    fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=8, frameon=False)
+    fig.subplots_adjust(bottom=0.6 / fig.get_figheight())
     return _save(fig, path)
+
+
+def _scale_bar(ax) -> None:
+    """A bar of a round length in metres, in the panel's lower left corner."""
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    span = x1 - x0
+    length = next((v for v in (0.5, 1, 2, 5, 10, 20, 50, 100) if v >= span / 5), 200)
+    x, y = x0 + 0.05 * span, y0 + 0.06 * (y1 - y0)
+    ax.plot([x, x + length], [y, y], color="black", lw=2)
+    ax.text(x + length / 2, y + 0.02 * (y1 - y0), f"{length:g} m", ha="center", fontsize=7)

@@ -31,15 +31,16 @@ class RecordingObserver:
     method: str
     showcases: list[Showcase]
     k: int
+    epochs: int  # per task: a task's results are drawn at the global epoch that ended it
+    colour: tuple[int, int, int]
     rollout_k: int = 5
     seed: int = 0
     final_predictions: dict[str, np.ndarray] = field(default_factory=dict)  # task -> (K, A, T, 2)
-    _epochs: int = 0
 
     def __call__(self, event: str, data: dict[str, Any]) -> None:
         if event == "epoch_end":
-            self.recorder.log_epoch(self.method, {**data, "global_epoch": self._epochs})
-            self._epochs += 1
+            epoch = data["task"] * self.epochs + data["epoch"]
+            self.recorder.log_epoch(self.method, {**data, "global_epoch": epoch}, self.colour)
         elif event == "task_end":
             self._task_end(data)
 
@@ -49,15 +50,15 @@ class RecordingObserver:
 
     def _task_end(self, data: dict[str, Any]) -> None:
         model, trained = data["model"], data["task"]
-        self.recorder.log_matrix_row(
-            self.method, trained, [s.task for s in self.showcases], data["row"]
-        )
+        when = {"task": trained, "epoch": max(0, (trained + 1) * self.epochs - 1)}
+        tasks = [s.task for s in self.showcases]
+        self.recorder.log_matrix_row(self.method, when, tasks, data["row"], self.colour)
         if data.get("diagnostics"):
-            self.recorder.log_diagnostics(self.method, trained, data["diagnostics"])
+            self.recorder.log_diagnostics(self.method, when, data["diagnostics"], self.colour)
         queue = getattr(model, "queue", None)
         if queue is not None:
             self.recorder.log_queue(
-                self.method, trained, queue.mixture.means.numpy(), queue.mixture.weights.numpy()
+                self.method, when, queue.mixture.means.numpy(), queue.mixture.weights.numpy()
             )
         for show in self.showcases:
             windows = show.scenes
@@ -72,11 +73,12 @@ class RecordingObserver:
                     show.task,
                     s,
                     self.method,
-                    trained,
+                    when,
                     windows.positions[agents, obs_len - 1],
                     pred[:, agents],
                     best[agents],
                     obs_len,
+                    self.colour,
                 )
             self.final_predictions[show.task] = pred
             if show.rollout_windows is not None:
@@ -85,11 +87,12 @@ class RecordingObserver:
                 self.recorder.log_rollout_predictions(
                     show.task,
                     self.method,
-                    trained,
+                    when,
                     show.rollout_frames,
                     rollout.positions[:, rollout.obs_len - 1],
                     pred,
                     rollout.agents_per_scene,
+                    self.colour,
                 )
 
 

@@ -26,18 +26,22 @@ import rerun.blueprint as rrb
 
 from c2inet.errors import InputError
 from c2inet.files import write_atomic
+from viz.colours import FUTURE, OBSERVED, legend_markdown
 
-GREY, GREEN, RED, ORANGE = (150, 150, 150), (40, 170, 60), (220, 60, 50), (255, 150, 0)
+Colour = tuple[int, int, int]
 
 
 def default_blueprint(tasks: list[str], scenes: int) -> rrb.Blueprint:
-    """Per task a tab of 2-D views (its sample scenes and its rollout), beside the curves and
-    the run card."""
+    """Per task a tab: its sample scenes in a grid beside its rollout, as large; beside them the
+    curves and diagnostics, then the legend and the run card. The viewer opens on the ``epoch``
+    timeline, where the curves live and every view shows the latest predictions."""
     tabs = [
-        rrb.Grid(
-            *(
-                rrb.Spatial2DView(origin=f"/tasks/{task}/scenes/{k}", name=f"scene {k}")
-                for k in range(scenes)
+        rrb.Horizontal(
+            rrb.Grid(
+                *(
+                    rrb.Spatial2DView(origin=f"/tasks/{task}/scenes/{k}", name=f"scene {k}")
+                    for k in range(scenes)
+                )
             ),
             rrb.Spatial2DView(origin=f"/rollouts/{task}", name="rollout"),
             name=task,
@@ -60,11 +64,16 @@ def default_blueprint(tasks: list[str], scenes: int) -> rrb.Blueprint:
                     *(rrb.TimeSeriesView(origin="/curves", contents=c, name=n) for n, c in curves),
                     rrb.TimeSeriesView(origin="/diagnostics", name="diagnostics (per task)"),
                 ),
-                rrb.TextDocumentView(origin="/run_card", name="run card"),
+                rrb.Tabs(
+                    rrb.TextDocumentView(origin="/legend", name="legend"),
+                    rrb.TextDocumentView(origin="/run_card", name="run card"),
+                ),
             ),
             column_shares=[3, 2],
         ),
-        collapse_panels=True,
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(timeline="epoch", state="collapsed"),
     )
 
 
@@ -85,6 +94,7 @@ class RunRecorder:
     def __init__(self, stream: rr.RecordingStream):
         self.rec = stream
         self.epoch = 0
+        self._coloured: set[str] = set()  # time series whose colour is already logged
 
     @classmethod
     def create(
@@ -124,6 +134,13 @@ class RunRecorder:
             self.rec.set_time(timeline, sequence=value)
 
     # --- static context -------------------------------------------------------------------
+    def log_legend(self, methods: list[str]) -> None:
+        self.rec.log(
+            "legend",
+            rr.TextDocument(legend_markdown(methods), media_type=rr.MediaType.MARKDOWN),
+            static=True,
+        )
+
     def log_run_card(self, markdown: str) -> None:
         self.rec.log(
             "run_card", rr.TextDocument(markdown, media_type=rr.MediaType.MARKDOWN), static=True
@@ -155,34 +172,36 @@ class RunRecorder:
         )
         self.rec.log(
             f"{base}/history",
-            rr.LineStrips2D(_strips(positions[:, :obs_len]), colors=GREY),
+            rr.LineStrips2D(_strips(positions[:, :obs_len]), colors=OBSERVED),
             static=True,
         )
         future = positions[:, obs_len - 1 :]
-        self.rec.log(f"{base}/future", rr.LineStrips2D(_strips(future), colors=GREEN), static=True)
+        self.rec.log(f"{base}/future", rr.LineStrips2D(_strips(future), colors=FUTURE), static=True)
 
     def log_scene_predictions(
         self,
         task: str,
         index: int,
         method: str,
-        trained_through: int,
+        when: dict[str, int],
         last_obs: np.ndarray,
         pred: np.ndarray,
         best: np.ndarray,
         obs_len: int,
+        colour: Colour,
     ) -> None:
-        """K predicted futures of one scene after training through task ``trained_through``.
+        """K predicted futures of one scene at ``when`` (the ``task`` trained through and the
+        ``epoch`` that ended it), in the method's colour.
 
         pred: (K, agents, T, 2), drawn from the last observed position; best: (agents,) sample
-        index of the best of K (joint), drawn distinctly.
+        index of the best of K (joint), drawn thick.
         """
         base = f"tasks/{task}/scenes/{index}/{method}"
-        self._time(task=trained_through, frame=obs_len - 1)
+        self._time(**when, frame=obs_len - 1)
         paths = _from_last_observed(last_obs, pred)
-        self.rec.log(f"{base}/predictions", rr.LineStrips2D(_strips(paths), colors=(*RED, 90)))
+        self.rec.log(f"{base}/predictions", rr.LineStrips2D(_strips(paths), colors=(*colour, 70)))
         chosen = paths[best, np.arange(paths.shape[1])]
-        self.rec.log(f"{base}/best", rr.LineStrips2D(_strips(chosen), colors=ORANGE, radii=0.03))
+        self.rec.log(f"{base}/best", rr.LineStrips2D(_strips(chosen), colors=colour, radii=0.04))
 
     # --- rollouts -------------------------------------------------------------------------
     def log_rollout_truth(self, task: str, positions: np.ndarray, ids: np.ndarray) -> None:
@@ -202,11 +221,12 @@ class RunRecorder:
         self,
         task: str,
         method: str,
-        trained_through: int,
+        when: dict[str, int],
         frames: np.ndarray,
         last_obs: np.ndarray,
         pred: np.ndarray,
         window_agents: np.ndarray,
+        colour: Colour,
     ) -> None:
         """At each frame, K predictions from the 8 frames observed so far.
 
@@ -219,44 +239,62 @@ class RunRecorder:
             f"rollouts/{task}/{method}/predictions",
             indexes=[
                 rr.TimeColumn("frame", sequence=frames),
-                rr.TimeColumn("task", sequence=np.full(len(frames), trained_through)),
+                *(rr.TimeColumn(t, sequence=np.full(len(frames), v)) for t, v in when.items()),
             ],
             columns=rr.LineStrips2D.columns(strips=_strips(paths)).partition(strips_per_window),
         )
+        self._colour_once(f"rollouts/{task}/{method}/predictions", rr.LineStrips2D, colour)
 
     # --- curves ---------------------------------------------------------------------------
-    def log_epoch(self, method: str, record: dict[str, Any]) -> None:
+    def _colour_once(self, path: str, archetype, colour: Colour) -> None:
+        """Give entity ``path`` its method's colour, logged once as static data."""
+        if path not in self._coloured:
+            self.rec.log(path, archetype.from_fields(colors=colour), static=True)
+            self._coloured.add(path)
+
+    def _scalar(self, path: str, value: float, colour: Colour) -> None:
+        """One point of a time series drawn in ``colour``."""
+        self._colour_once(path, rr.SeriesLines, colour)
+        self.rec.log(path, rr.Scalars(float(value)))
+
+    def log_epoch(self, method: str, record: dict[str, Any], colour: Colour) -> None:
         """Training losses and validation ADE of every seen task, on the global ``epoch``."""
         self._time(epoch=record["global_epoch"], task=record["task"])
         for key, value in record.items():
-            if key in ("task", "epoch", "global_epoch"):
-                continue
-            self.rec.log(f"curves/{method}/{key}", rr.Scalars(float(value)))
+            if key not in ("task", "epoch", "global_epoch"):
+                self._scalar(f"curves/{method}/{key}", value, colour)
 
     def log_matrix_row(
-        self, method: str, trained_through: int, tasks: list[str], row: dict[str, list[float]]
+        self,
+        method: str,
+        when: dict[str, int],
+        tasks: list[str],
+        row: dict[str, list[float]],
+        colour: Colour,
     ) -> None:
-        """Error on every task after training through one task, on the ``task`` timeline."""
-        self._time(task=trained_through)
+        """Error on every task after training through one task, at ``when``."""
+        self._time(**when)
         for j, name in enumerate(tasks):
             for metric in ("ade", "fde", "ade_k1"):
-                self.rec.log(f"curves/{method}/matrix/{metric}/{name}", rr.Scalars(row[metric][j]))
+                self._scalar(f"curves/{method}/matrix/{metric}/{name}", row[metric][j], colour)
 
-    def log_diagnostics(self, method: str, trained_through: int, diagnostics: dict) -> None:
-        """The confounder's diagnostics after a task (``c2inet.diagnostics``), as scalars on the
-        ``task`` timeline; per-task lists are averaged over the tasks seen."""
-        self._time(task=trained_through)
+    def log_diagnostics(
+        self, method: str, when: dict[str, int], diagnostics: dict, colour: Colour
+    ) -> None:
+        """The confounder's diagnostics after a task (``c2inet.diagnostics``), as scalars at
+        ``when``; per-task lists are averaged over the tasks seen."""
+        self._time(**when)
         for key, value in diagnostics.items():
             if isinstance(value, list):
                 value = float(np.mean(value)) if value else None
             if isinstance(value, int | float):
-                self.rec.log(f"diagnostics/{method}/{key}", rr.Scalars(float(value)))
+                self._scalar(f"diagnostics/{method}/{key}", value, colour)
 
     def log_queue(
-        self, method: str, trained_through: int, means: np.ndarray, weights: np.ndarray
+        self, method: str, when: dict[str, int], means: np.ndarray, weights: np.ndarray
     ) -> None:
         """The prior queue after a task: its size, weights, and component means in 2-D (PCA)."""
-        self._time(task=trained_through)
+        self._time(**when)
         self.rec.log(f"curves/{method}/queue_size", rr.Scalars(float(len(weights))))
         centred = means - means.mean(0)
         if len(means) > 1 and means.shape[1] > 2:

@@ -54,7 +54,7 @@ def screenshot(
         raise RuntimeError("no chromium on PATH (Debian: apt-get install chromium)")
     web, grpc = free_port(), free_port()
     with tempfile.TemporaryDirectory() as tmp:
-        env = {**os.environ, "XDG_CONFIG_HOME": tmp}
+        env = dict(os.environ)  # the user's own Rerun configuration
         server = launch(
             command(recording, web, grpc), env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
         )

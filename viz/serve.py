@@ -12,7 +12,6 @@ import signal
 import socket
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -89,10 +88,7 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     if not args.recording.is_file():
         raise InputError(f"{args.recording}: no such recording")
-    env = dict(os.environ)
-    env.setdefault(
-        "XDG_CONFIG_HOME", tempfile.mkdtemp(prefix="rerun-config-")
-    )  # no analytics file in ~
+    env = dict(os.environ)  # the user's own Rerun configuration: its notice shows once, not always
     grpc = f"rerun%2Bhttp://127.0.0.1:{args.grpc_port}/proxy"
     print(f"serving {args.recording} at http://127.0.0.1:{args.web_port}/?url={grpc}", flush=True)
     server = launch(command(args.recording, args.web_port, args.grpc_port), env)

@@ -18,6 +18,7 @@ import numpy as np
 import torch
 
 from c2inet.data import Windows
+from c2inet.errors import did_you_mean
 from c2inet.model import ModelConfig, Predictor
 
 METHODS: dict[str, type[Method]] = {}
@@ -48,7 +49,9 @@ def build_options(cls: type, values: dict[str, Any]):
     for key, value in values.items():
         if key not in fields:
             known = ", ".join(fields) or "none"
-            raise ValueError(f"unknown option {key!r} (options: {known})")
+            raise ValueError(
+                f"unknown option {key!r}{did_you_mean(key, fields)} (options: {known})"
+            )
         kind = type(getattr(cls(), key))
         if kind is bool and not isinstance(value, bool):
             raise ValueError(f"option {key!r} must be true or false, got {value!r}")
@@ -121,5 +124,6 @@ def discover() -> dict[str, type[Method]]:
 def get_method(name: str) -> type[Method]:
     discover()
     if name not in METHODS:
-        raise KeyError(f"unknown method {name!r} (known: {', '.join(sorted(METHODS))})")
+        hint = did_you_mean(name, METHODS)
+        raise KeyError(f"unknown method {name!r}{hint} (known: {', '.join(sorted(METHODS))})")
     return METHODS[name]

@@ -29,13 +29,11 @@ class FilesKnobs:
     val: tuple[str, ...] = ()
     test: tuple[str, ...] = ()
     dt: float = 0.4  # s per frame step of the files
-    radius: float = 0.2  # m, nominal body radius, used only for the overlap statistic
 
     def __post_init__(self):
         if not self.train or not self.test:
             raise InputError("a files domain needs 'train' and 'test' file patterns")
         check_range("dt", self.dt, 0, 10, open_low=True)
-        check_range("radius", self.radius, 0, 1)
 
 
 def read_trajectory_file(path: Path) -> Scene:
@@ -90,12 +88,12 @@ class FilesGenerator(Generator):
     """Recorded trajectories read from ETH-UCY-format text files."""
 
     name = "files"
-    version = 1
+    version = 2  # 2: no overlap count (it needed a made-up body radius)
     Knobs = FilesKnobs
 
     @classmethod
     def resolve(cls, knobs: FilesKnobs, base_dir: Path) -> dict[str, Any]:
-        out: dict[str, Any] = {"dt": knobs.dt, "radius": knobs.radius}
+        out: dict[str, Any] = {"dt": knobs.dt}
         for split in SPLITS:
             paths: list[str] = []
             for pattern in getattr(knobs, split):
@@ -123,7 +121,7 @@ class FilesGenerator(Generator):
         scenes = {split: [read_trajectory_file(Path(p)) for p in knobs[split]] for split in SPLITS}
         everything = [s for split in SPLITS for s in scenes[split]]
         stats = motion_stats(everything, knobs["dt"])
-        stats.update(proximity_stats(everything, 2 * knobs["radius"]))
+        stats.update(proximity_stats(everything))  # no overlaps: recorded people have no radius
         stats["density"] = _density(everything)
         return Domain(name, family, self.name, knobs, knobs["dt"], scenes, stats)
 

@@ -265,7 +265,7 @@ class TrafficGenerator(Generator):
             scenes[split] = [scene for ep in mine for scene in local_scenes(ep, options)]
         everything = [Scene(ep.positions, np.arange(ep.positions.shape[1])) for ep in episodes]
         stats = motion_stats(everything, options.dt)
-        stats.update(proximity_stats(everything, 0.0))
+        stats.update(proximity_stats(everything))
         stats.update(traffic_stats(episodes, options.dt))
         stats["density"] = stats["vehicles_per_km_lane"]
         stats["overlaps"] = stats["crashes"]

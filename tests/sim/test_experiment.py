@@ -158,7 +158,7 @@ def test_the_experiment_is_a_function(tmp_path):
     [
         ({"methods": ("sgd",)}, "unknown method"),
         ({"methods": ()}, "no method"),
-        ({"settings": {"ewc": {"strength": 1}}}, "not model, train"),
+        ({"settings": {"ewc": {"strength": 1}}}, "not data, model, train"),
         ({"scenario": "crowd_noise_1..0"}, "reversed"),
     ],
 )

@@ -1,17 +1,17 @@
 """Real data through the files generator: parsing, validation errors, the vendored ETH-UCY."""
 
 import hashlib
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from c2inet.errors import InputError
 from sim.domains import build_domain
+from sim.families import SCENARIOS_DIR
 from sim.generators.files import read_trajectory_file
 from sim.scenario import parse_scenario
 
-DATA = Path(__file__).resolve().parents[2] / "data"
+DATA = SCENARIOS_DIR / "data"
 
 
 def write(tmp_path, text, name="t.txt"):

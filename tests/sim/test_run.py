@@ -133,7 +133,7 @@ def test_seeds_give_mean_and_std(tmp_path):
             "true or false",
         ),
         (["--scenario", "crowd_noise_0.1", "--set", "pruning"], "SCOPE.KEY=VALUE"),
-        (["--scenario", "crowd_noise_0.1", "--set", "ewc.strength=1"], "not model, train"),
+        (["--scenario", "crowd_noise_0.1", "--set", "ewc.strength=1"], "not data, model, train"),
         (["--scenario", "crowd_noise_0.1", "--workers", "0"], "--workers"),
         (["--scenario", "crowd_noise_0.1", "--seeds", "0"], "--seeds: 0 is not between 1"),
         (["--scenario", "crowd_noise_0.1", "--k", "many"], "--k: 'many' is not an integer"),
@@ -157,3 +157,74 @@ def test_bad_options_give_one_error_line(args, message):
     assert result.returncode == 2
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error:") and message in lines[0]
+
+
+def test_list_shows_families_methods_and_knobs():
+    families = run("--list", "families")
+    assert families.returncode == 0 and "crowd_radius" in families.stdout
+    assert "eth_ucy" in families.stdout and "radius" in families.stdout
+    methods = run("--list", "methods")
+    assert all(m in methods.stdout for m in ("c2inet-online", "ewc", "cv", "joint"))
+    knobs = run("--list", "knobs", "crowd_noise")
+    assert (
+        "agents" in knobs.stdout and "noise" in knobs.stdout and "<- the scenario" in knobs.stdout
+    )
+    help_text = run("--help").stdout
+    assert "examples:" in help_text and "``" not in help_text and "--list" in help_text
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--scenario", "crowd_nose_0.1"], "did you mean 'crowd_noise'?"),
+        (["--scenario", "crowd_noise_0.1", "--methods", "finetun"], "did you mean 'finetune'?"),
+        (["--scenario", "crowd_noise_0.1-0.6"], "a range is written 0.1..0.6"),
+        (["--scenario", "crowd_noise"], "needs values"),
+        (["--scenario", "crowd_noise_0.1", "--set", "data.agentz=3"], "did you mean 'agents'?"),
+        (["--scenario", "crowd_noise_0.1", "--set", "data.noise=0.3"], "what crowd_noise's values"),
+        (["--scenario", "crowd_noise_0.1", "--set", "train.lrr=1"], "did you mean 'lr'?"),
+        (["--scenario", "crowd_noise_0.1", "--logger", "tensorbord"], "did you mean"),
+        (["--list", "knobs", "crowd_nois"], "did you mean 'crowd_noise'?"),
+        (["--list", "everything"], "expected families, methods, or knobs FAMILY"),
+        ([], "required: --scenario"),
+    ],
+)
+def test_mistakes_get_a_hint(args, message):
+    result = run(*args)
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], lines
+
+
+def test_knob_overrides_reach_the_domains_and_the_run_card(tmp_path):
+    args = ["--scenario", "crowd_noise_0.1 + crowd_noise_0.2", "--quick", "--methods", "cv"]
+    args += ["--cache", str(tmp_path / "cache"), "--no-record", "--logger", "csv,tensorboard"]
+    plain = run(*args, "--out", str(tmp_path / "plain"))
+    tweaked = run(*args, "--set", "data.agents=4", "--out", str(tmp_path / "tweaked"))
+    assert plain.returncode == 0 and tweaked.returncode == 0, tweaked.stderr
+    cards = [json.loads((tmp_path / n / "run_card.json").read_text()) for n in ("plain", "tweaked")]
+    assert [d["knobs"]["agents"] for d in cards[1]["domains"]] == [4, 4]
+    assert cards[0]["domains"][0]["knobs"]["agents"] == 10
+    assert cards[0]["domains"][0]["hash"] != cards[1]["domains"][0]["hash"]
+    assert cards[1]["settings"]["data"] == {"agents": 4}
+
+
+def test_loggers_write_the_numbers_of_metrics_json(tmp_path):
+    out = tmp_path / "run"
+    args = ["--scenario", "crowd_noise_0.1,0.2", "--quick", "--methods", "finetune", "--no-record"]
+    done = run(*args, "--logger", "csv,tensorboard", "--out", str(out), "--cache", str(tmp_path))
+    assert done.returncode == 0, done.stderr
+    metrics = json.loads((out / "metrics.json").read_text())["methods"]["finetune"]
+    job = out / "jobs" / "finetune" / "seed_0"
+    with open(job / "log.csv") as f:
+        rows = list(csv.DictReader(f))
+    logged = {(r["name"], int(r["step"])): float(r["value"]) for r in rows}
+    assert logged["matrix_ade/crowd_noise_0.1", 3] == pytest.approx(metrics["ade"][1][0])
+    assert ("val_ade/crowd_noise_0.2", 2) in logged and ("nll", 0) in logged
+    assert any(name.startswith("diagnostics/") for name, _ in logged)
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    events = EventAccumulator(str(job / "tensorboard"))
+    events.Reload()
+    (point,) = [s for s in events.Scalars("matrix_ade/crowd_noise_0.1") if s.step == 3]
+    assert point.value == pytest.approx(metrics["ade"][1][0], rel=1e-6)

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from rerun.chunk import RrdReader
 
+from viz.colours import method_colour
 from viz.serve import command, free_port, launch, stop, wait_for_port
 
 RERUN = str(Path(sys.executable).with_name("rerun"))
@@ -76,19 +77,45 @@ def test_recording_holds_scenes_rollouts_curves_and_queue(recorded):
                 assert rows[f"{scene}/{method}/predictions"] == 2  # one per checkpoint (task)
                 assert rows[f"{scene}/{method}/best"] == 2
         assert rows[f"/rollouts/{task}/truth/agents"] == 50
-        assert rows[f"/rollouts/{task}/finetune/predictions"] == 2 * 31  # 31 windows per checkpoint
-    assert rows["/curves/finetune/val_ade/crowd_noise_0.1"] == 4  # 2 epochs x 2 tasks
-    assert rows["/curves/finetune/val_ade/crowd_noise_0.2"] == 2
-    assert rows["/curves/finetune/matrix/ade/crowd_noise_0.2"] == 2
-    assert rows["/curves/c2inet-online/kl_c"] == 4
+        # 31 windows per checkpoint, and the method's colour (static)
+        assert rows[f"/rollouts/{task}/finetune/predictions"] == 2 * 31 + 1
+    # per series: a row per point, and the method's colour (static)
+    assert rows["/curves/finetune/val_ade/crowd_noise_0.1"] == 4 + 1  # 2 epochs x 2 tasks
+    assert rows["/curves/finetune/val_ade/crowd_noise_0.2"] == 2 + 1
+    assert rows["/curves/finetune/matrix/ade/crowd_noise_0.2"] == 2 + 1
+    assert rows["/curves/c2inet-online/kl_c"] == 4 + 1
     assert rows["/queue/c2inet-online/components"] == 2
     # the confounder's diagnostics, one row per task; the baselines' have no C part
-    assert rows["/diagnostics/c2inet-online/mi_xc"] == 2
-    assert rows["/diagnostics/c2inet-online/c_effect"] == 2
-    assert rows["/diagnostics/finetune/probe_context"] == 1  # None after the first task
+    assert rows["/diagnostics/c2inet-online/mi_xc"] == 2 + 1
+    assert rows["/diagnostics/c2inet-online/c_effect"] == 2 + 1
+    assert rows["/diagnostics/finetune/probe_context"] == 1 + 1  # None after the first task
     assert "/diagnostics/finetune/mi_xc" not in rows
     assert rows["/run_card"] == 1
     assert not any("/cv/" in path and "val_ade" in path for path in rows)  # cv does not train
+
+
+def chunks_of(path: Path, entity: str) -> list:
+    return [c for c in RrdReader(str(path)).stream() if c.entity_path == entity]
+
+
+def test_each_method_has_its_own_colour_and_the_legend_names_them(recorded):
+    path, seen = recorded / "recording.rrd", {}
+    for index, method in enumerate(("c2inet-online", "finetune", "cv")):
+        chunks = chunks_of(path, f"/tasks/{TASKS[0]}/scenes/0/{method}/best")
+        packed = {
+            int(v)
+            for c in chunks
+            for v in c.to_record_batch().column("LineStrips2D:colors").flatten().to_pylist()
+        }
+        red, green, blue = method_colour(index)
+        assert packed == {(red << 24) | (green << 16) | (blue << 8) | 255}, method
+        # drawn on the epoch timeline too, where the viewer opens with the curves
+        assert all("epoch" in c.timeline_names for c in chunks if not c.is_static)
+        seen[method] = packed
+    assert len({min(v) for v in seen.values()}) == 3
+    (legend,) = chunks_of(path, "/legend")
+    text = str(legend.to_record_batch().column("TextDocument:text").to_pylist())
+    assert all(m in text for m in seen) and "blue" in text
 
 
 def test_recording_verifies_and_stays_small(recorded, env):
@@ -146,7 +173,7 @@ def test_live_stream_reaches_a_local_viewer_server(tmp_path, env):
     assert not (tmp_path / "run" / "recording.rrd").exists()
     rows = rows_per_entity(saved)
     assert rows["/tasks/crowd_noise_0.2/scenes/0/finetune/predictions"] == 2
-    assert rows["/curves/finetune/val_ade/crowd_noise_0.1"] == 4
+    assert rows["/curves/finetune/val_ade/crowd_noise_0.1"] == 4 + 1  # and its colour
 
 
 def test_web_viewer_serves_on_loopback_only(recorded, env):

@@ -1,0 +1,75 @@
+"""How long a run will take, measured before it starts.
+
+Each method is timed on this machine for a few training steps, one evaluation and one set of
+diagnostics on the first task; the run's cost follows from how often each happens (steps per
+epoch, epochs, evaluations of every task after every task, validation of the tasks seen). It is
+an estimate: later tasks, replay and a busy machine change it.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+
+import torch
+
+from c2inet.batch import batches
+from c2inet.diagnostics import diagnose
+from c2inet.trainer import Task, evaluate, evaluate_all
+
+STEPS = 3  # timed training steps per method, after one to warm up
+
+
+def _seconds(work: Callable[[], object], repeat: int = 1) -> float:
+    start = time.perf_counter()
+    for _ in range(repeat):
+        work()
+    return (time.perf_counter() - start) / repeat
+
+
+def method_seconds(config, name: str, tasks: list[Task]) -> float:
+    """The estimated time of one job of method ``name`` through ``tasks`` (one thread)."""
+    method, train = config.method(name), config.train_config()
+    n, first = len(tasks), tasks[0]
+    with torch.random.fork_rng(devices=[]):
+        model = method.build_model()
+        total = 0.0
+        if method.trains:
+            optimiser = torch.optim.Adam(model.parameters(), lr=train.lr)
+            batch = next(batches(first.train, train.batch_scenes))
+
+            def step() -> None:
+                loss, _ = model.loss(batch, train.k_train)
+                optimiser.zero_grad()
+                loss.backward()
+                optimiser.step()
+
+            step()
+            per_step = _seconds(step, STEPS)
+            steps = sum(math.ceil(len(t.train) / train.batch_scenes) for t in tasks)
+            total += per_step * steps * config.epochs
+            if first.val is not None and train.val_every:
+                val = _seconds(lambda: evaluate(model, first.val, 1, 0))
+                total += val * config.epochs / train.val_every * n * (n + 1) / 2
+        total += _seconds(lambda: evaluate_all(model, first.test, config.k, 0)) * n * n
+        if train.diagnostics:
+            once = _seconds(lambda: diagnose(model, [first.test], [first.value], 0))
+            total += once * n * (n + 1) / 2
+    return total
+
+
+def run_seconds(config, tasks: list[Task], parallel: int) -> float:
+    """The estimated wall time of every job of ``config``, ``parallel`` at a time."""
+    each = {name: method_seconds(config, name, tasks) for name in config.methods}
+    jobs = sorted(
+        (each[name] for name in config.methods for _ in range(config.seeds)), reverse=True
+    )
+    lanes = [0.0] * max(1, parallel)
+    for seconds in jobs:  # longest first, each to the least loaded worker
+        lanes[lanes.index(min(lanes))] += seconds
+    return max(lanes)
+
+
+def describe(seconds: float) -> str:
+    return f"{seconds:.0f} s" if seconds < 90 else f"{seconds / 60:.1f} min"
