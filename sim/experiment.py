@@ -433,7 +433,11 @@ def record_truth(config: ExperimentConfig, curriculum: Curriculum, path: Path, l
     """The run's own recording: the blueprint, the domains and the ground truth."""
     tasks = [t.name for t in curriculum.inputs.tasks]
     recorder = RunRecorder.create(
-        APP_ID, recording_id(config), path, live, default_blueprint(tasks, SAMPLE_SCENES)
+        APP_ID,
+        recording_id(config),
+        path,
+        live,
+        default_blueprint(tasks, list(config.methods), SAMPLE_SCENES),
     )
     recorder.log_legend(list(config.methods))
     for domain in curriculum.domains:

@@ -47,7 +47,9 @@ def error_matrix(
     image = ax.imshow(shade, cmap="viridis")
     for i in range(len(labels)):
         for j in range(len(labels)):
-            ax.text(j, i, f"{data[i, j]:.2f}", ha="center", va="center", color="w", fontsize=8)
+            light = image.norm(shade[i, j]) > 0.6  # dark text on the light end of viridis
+            colour = "black" if light else "white"
+            ax.text(j, i, f"{data[i, j]:.2f}", ha="center", va="center", color=colour, fontsize=8)
     ax.set_xticks(range(len(labels)), labels, rotation=45)
     ax.set_yticks(range(len(labels)), labels)
     ax.set_xlabel("evaluated on task")

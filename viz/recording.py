@@ -31,7 +31,18 @@ from viz.colours import FUTURE, OBSERVED, legend_markdown
 Colour = tuple[int, int, int]
 
 
-def default_blueprint(tasks: list[str], scenes: int) -> rrb.Blueprint:
+def curve_views(methods: list[str]) -> list[tuple[str, list[str]]]:
+    """(name, entity filters) of the curve views. Filters name each method: Rerun matches a
+    trailing ``/**`` only, a ``*`` inside a path matches nothing."""
+    losses = ("nll", "kl_c", "kl_z", "penalty")
+    return [
+        ("validation ADE", [f"/curves/{m}/val_ade/**" for m in methods]),
+        ("error matrix rows (ADE)", [f"/curves/{m}/matrix/ade/**" for m in methods]),
+        ("training losses", [f"/curves/{m}/{loss}" for m in methods for loss in losses]),
+    ]
+
+
+def default_blueprint(tasks: list[str], methods: list[str], scenes: int) -> rrb.Blueprint:
     """Per task a tab: its sample scenes in a grid beside its rollout, as large; beside them the
     curves and diagnostics, then the legend and the run card. The viewer opens on the ``epoch``
     timeline, where the curves live and every view shows the latest predictions."""
@@ -48,14 +59,7 @@ def default_blueprint(tasks: list[str], scenes: int) -> rrb.Blueprint:
         )
         for task in tasks
     ]
-    curves = [
-        ("validation ADE", "/curves/*/val_ade/**"),
-        ("error matrix rows (ADE)", "/curves/*/matrix/ade/**"),
-        (
-            "training losses",
-            ["/curves/*/nll", "/curves/*/kl_c", "/curves/*/kl_z", "/curves/*/penalty"],
-        ),
-    ]
+    curves = curve_views(methods)
     return rrb.Blueprint(
         rrb.Horizontal(
             rrb.Tabs(*tabs),
@@ -71,9 +75,8 @@ def default_blueprint(tasks: list[str], scenes: int) -> rrb.Blueprint:
             ),
             column_shares=[3, 2],
         ),
-        rrb.BlueprintPanel(state="collapsed"),
-        rrb.SelectionPanel(state="collapsed"),
         rrb.TimePanel(timeline="epoch", state="collapsed"),
+        collapse_panels=True,
     )
 
 

@@ -15,6 +15,7 @@ the same for any number of workers.
 from __future__ import annotations
 
 import multiprocessing
+import signal
 import warnings
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -229,8 +230,12 @@ def run_episodes(
     if workers <= 1 or len(jobs) <= 1:
         return [_episode_job(j) for j in jobs]
     context = multiprocessing.get_context("spawn")  # highway-env mutates class state: isolate it
-    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+    # workers ignore Ctrl-C (the driver stops the run); queued episodes are dropped, not run
+    pool = ProcessPoolExecutor(workers, context, signal.signal, (signal.SIGINT, signal.SIG_IGN))
+    try:
         return list(pool.map(_episode_job, jobs))
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 class TrafficGenerator(Generator):

@@ -14,6 +14,7 @@ import pytest
 from rerun.chunk import RrdReader
 
 from viz.colours import method_colour
+from viz.recording import curve_views
 from viz.serve import command, free_port, launch, stop, wait_for_port
 
 RERUN = str(Path(sys.executable).with_name("rerun"))
@@ -116,6 +117,21 @@ def test_each_method_has_its_own_colour_and_the_legend_names_them(recorded):
     (legend,) = chunks_of(path, "/legend")
     text = str(legend.to_record_batch().column("TextDocument:text").to_pylist())
     assert all(m in text for m in seen) and "blue" in text
+
+
+def test_every_curve_view_shows_recorded_curves_of_every_method(recorded):
+    entities = set(rows_per_entity(recorded / "recording.rrd"))
+    methods = ["c2inet-online", "finetune", "cv"]
+    for name, filters in curve_views(methods):
+        for method in ("c2inet-online", "finetune"):  # the methods that train
+            mine = [f for f in filters if f.startswith(f"/curves/{method}/")]
+            shown = {
+                e
+                for e in entities
+                for f in mine
+                if e == f or (f.endswith("/**") and e.startswith(f.removesuffix("**")))
+            }
+            assert shown, f"the {name!r} view shows nothing of {method}"
 
 
 def test_recording_verifies_and_stays_small(recorded, env):
