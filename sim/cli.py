@@ -26,7 +26,7 @@ def parser(
     """An argument parser with the options every scenario entry point takes, ``--list``, and
     ``examples`` under the help (``scenarios``: ``--scenario`` may be repeated, giving a list).
     Parse with :func:`parse`."""
-    p = plain_parser(prog, description.replace("``", ""))
+    p = plain_parser(prog, description)
     p.formatter_class = argparse.RawDescriptionHelpFormatter
     p.epilog = f"examples:\n{examples}\n\n{SCENARIO_HELP}" if examples else SCENARIO_HELP
     p.add_argument(

@@ -17,7 +17,8 @@ def run(*command, **options) -> subprocess.CompletedProcess:
     return done
 
 
-def test_a_wheel_in_a_fresh_environment_generates_domains_anywhere(tmp_path):
+def test_a_wheel_in_a_fresh_environment_generates_domains_anywhere(tmp_path, monkeypatch):
+    monkeypatch.setenv("PIP_CACHE_DIR", str(tmp_path / "pip-cache"))  # nothing written in ~
     run(sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", tmp_path / "dist", ROOT)
     (wheel,) = (tmp_path / "dist").glob("c2i_testbed-*.whl")
     names = set(zipfile.ZipFile(wheel).namelist())

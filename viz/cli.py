@@ -19,8 +19,9 @@ class _Parser(argparse.ArgumentParser):
 
 
 def plain_parser(prog: str, description: str) -> argparse.ArgumentParser:
-    """An argument parser whose errors are one ``InputError`` line (see :func:`guarded`)."""
-    return _Parser(prog=prog, description=description)
+    """An argument parser whose errors are one ``InputError`` line (see :func:`guarded`); the
+    description may be a docstring's first line, whose reST quotes are dropped."""
+    return _Parser(prog=prog, description=description.replace("``", ""))
 
 
 def bounded_int(low: int, high: int) -> Callable[[str], int]:

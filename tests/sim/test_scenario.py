@@ -8,6 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from c2inet.errors import InputError
+from sim.families import SCENARIOS_DIR
 from sim.scenario import parse_scenario
 
 
@@ -52,6 +53,25 @@ def test_name_valued_family_resolves_files():
 
 def test_user_folder_adds_families(family_dir):
     assert names("tiny_noise_0.2", [family_dir]) == ["tiny_noise_0.2"]
+
+
+def test_a_copy_of_a_built_in_family_replaces_it_with_a_notice(tmp_path, capsys):
+    text = (SCENARIOS_DIR / "crowd_noise.toml").read_text().replace("agents = 10", "agents = 3")
+    (tmp_path / "crowd_noise.toml").write_text(text)
+    (spec,) = parse_scenario("crowd_noise_0.2", [tmp_path])
+    assert spec.knobs()["agents"] == 3 and spec.family.path.parent == tmp_path
+    assert "replaces the built-in crowd_noise" in capsys.readouterr().err
+    (other := tmp_path / "more").mkdir()
+    (other / "crowd_noise.toml").write_text(text)
+    with pytest.raises(InputError, match="already defined"):
+        parse_scenario("crowd_noise_0.2", [tmp_path, other])
+
+
+def test_data_overrides_change_knobs_and_split_sizes():
+    (spec,) = parse_scenario("crowd_noise_0.2", None, {"agents": 4, "splits.train": 7})
+    assert spec.knobs()["agents"] == 4 and spec.family.splits.train == 7
+    with pytest.raises(InputError, match="splits.train, .val or .test"):
+        parse_scenario("crowd_noise_0.2", None, {"splits.trian": 7})
 
 
 @pytest.mark.parametrize(
