@@ -4,18 +4,20 @@ from __future__ import annotations
 
 import hashlib
 import json
+import sys
 import zlib
 from pathlib import Path
 
 import numpy as np
 
+from c2inet.errors import InputError
 from sim.data import Domain
 from sim.families import Splits
 from sim.generators import child_seed, get_generator
 from sim.io import read_parquet, write_parquet
 from sim.scenario import DomainSpec
 
-CODE_VERSION = 1  # bump when the data model or the cache layout changes
+CODE_VERSION = 2  # bump when the data model or the cache layout changes (2: checksums)
 
 
 def domain_seed(root_seed: int, spec: DomainSpec) -> np.random.SeedSequence:
@@ -59,7 +61,10 @@ def build_domain(
     digest = domain_hash(spec, root_seed, splits)
     cached = cache_dir / f"{spec.name}-{digest}.parquet" if cache_dir else None
     if cached and cached.exists():
-        return read_parquet(cached)
+        try:
+            return read_parquet(cached)
+        except InputError as error:  # damaged or truncated: never used, made again
+            print(f"warning: {error}; generating it again", file=sys.stderr)
     generator = get_generator(spec.family.generator)()
     domain = generator.generate(
         spec.name, spec.family.name, spec.knobs(), splits, domain_seed(root_seed, spec), workers

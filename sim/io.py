@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import io
 import json
 import zipfile
@@ -30,7 +31,7 @@ def _table(domain: Domain) -> pa.Table:
             columns["x"].append(scene.positions[frame, column, 0])
             columns["y"].append(scene.positions[frame, column, 1])
     arrays = {k: np.concatenate(v) if v else np.zeros(0) for k, v in columns.items()}
-    meta = {
+    meta: dict = {
         "name": domain.name,
         "family": domain.family,
         "generator": domain.generator,
@@ -42,7 +43,20 @@ def _table(domain: Domain) -> pa.Table:
             s: [[sc.num_frames, len(sc.agent_ids)] for sc in domain.scenes[s]] for s in SPLITS
         },
     }
+    meta["checksum"] = _checksum(arrays, meta)
     return pa.table(arrays).replace_schema_metadata({"domain": json.dumps(meta, sort_keys=True)})
+
+
+def _checksum(arrays: dict[str, np.ndarray], meta: dict) -> str:
+    """SHA-256 of every column's bytes and of the metadata (without the checksum itself)."""
+    digest = hashlib.sha256()
+    for name in sorted(arrays):
+        array = np.ascontiguousarray(arrays[name])
+        digest.update(f"{name}:{array.dtype.str}:{array.shape}".encode())
+        digest.update(array.tobytes())
+    rest = {k: v for k, v in meta.items() if k != "checksum"}
+    digest.update(json.dumps(rest, sort_keys=True).encode())
+    return digest.hexdigest()
 
 
 def write_parquet(domain: Domain, path: Path) -> None:
@@ -55,9 +69,12 @@ def read_parquet(path: Path) -> Domain:
     try:
         table = pq.read_table(path)
         meta = json.loads(table.schema.metadata[b"domain"])
-    except (OSError, KeyError, ValueError, pa.ArrowException) as error:
+        data = {name: table.column(name).to_numpy() for name in table.column_names}
+        intact = meta["checksum"] == _checksum(data, meta)
+    except (OSError, KeyError, ValueError, TypeError, pa.ArrowException) as error:
         raise InputError(f"{path}: not a domain file: {error}") from None
-    data = {name: table.column(name).to_numpy() for name in table.column_names}
+    if not intact:
+        raise InputError(f"{path}: damaged domain file (its content does not match its checksum)")
     scenes: dict[str, list[Scene]] = {}
     for split_id, split in enumerate(SPLITS):
         in_split = data["split"] == split_id
