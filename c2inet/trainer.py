@@ -7,6 +7,7 @@ except by methods that declare ``sees_old_tasks`` (the joint reference).
 
 from __future__ import annotations
 
+import itertools
 import zlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -196,15 +197,15 @@ class ContinualTrainer:
             },
         )
 
+    def _checkpoint(self, index: int) -> Path:
+        return self.checkpoint_dir / f"task_{index:02d}.pt"
+
     def checkpoints(self) -> list[Path]:
         """The task checkpoints in ``checkpoint_dir``: task 0, 1, ... up to the first gap."""
-        found = []
-        while self.checkpoint_dir is not None:
-            path = self.checkpoint_dir / f"task_{len(found):02d}.pt"
-            if not path.exists():
-                break
-            found.append(path)
-        return found[: len(self.tasks)]
+        if self.checkpoint_dir is None:
+            return []
+        paths = (self._checkpoint(i) for i in range(len(self.tasks)))
+        return list(itertools.takewhile(Path.exists, paths))
 
     def _replay(self, model, optimiser, rng: np.random.Generator, result: Result) -> int:
         """Restore the state after the last finished task and return the next task's index.
@@ -285,8 +286,7 @@ class ContinualTrainer:
             "diagnostics": list(result.diagnostics),
             "history": list(self.history),
         }
-        path = self.checkpoint_dir / f"task_{index:02d}.pt"
-        write_atomic(path, lambda tmp: torch.save(state, tmp))
+        write_atomic(self._checkpoint(index), lambda tmp: torch.save(state, tmp))
 
 
 def load_checkpoint(path: Path) -> dict[str, Any]:

@@ -32,33 +32,27 @@ from c2inet.errors import InputError, did_you_mean
 from c2inet.files import write_atomic, write_text_atomic
 from c2inet.methods.base import build_options, get_method
 from c2inet.model import ModelConfig
-from c2inet.trainer import ContinualTrainer, Result, Task, TrainConfig
+from c2inet.trainer import ContinualTrainer, Result, TrainConfig
 from sim.backends import BACKENDS, run_jobs
-from sim.data import SPLITS, cut_windows, window_members
-from sim.domains import build_domain, rollout_scene
+from sim.curriculum import SAMPLE_SCENES, Curriculum, JobInputs, make_showcases, make_tasks
 from sim.estimate import describe, run_seconds
-from sim.families import Splits
-from sim.generators import get_generator
-from sim.outputs import claim, output_folder, write_outputs
+from sim.outputs import TRUTH_PART, claim, output_folder, write_outputs
 from sim.scenario import DomainSpec, parse_scenario
 from viz.colours import method_colour
 from viz.loggers import LOGGERS, make_loggers
-from viz.observer import RecordingObserver, Showcase, log_truth
+from viz.observer import RecordingObserver, log_truth
 from viz.recording import RunRecorder, default_blueprint
 
 DEFAULT_METHODS = ("c2inet-online", "finetune", "cv")
 APP_ID = "c2i-testbed"
-QUICK_WINDOWS = 24  # at most this many windows per split in --quick runs (real data)
-SAMPLE_SCENES = 4  # test scenes per task drawn in the recording
-ROLLOUT_FRAMES = 50  # frames of the longer episode played per domain (20 s at 0.4 s)
 
 
 @dataclass(frozen=True)
 class ExperimentConfig:
     """What an experiment computes: equal configurations give equal ``metrics.json``.
 
-    ``settings`` are option overrides by scope (``model``, ``train`` or a method's name), as
-    ``--set SCOPE.KEY=VALUE`` gives them. ``epochs`` and ``k`` default to 20 (2 and 5 when
+    ``settings`` are option overrides by scope (``data``, ``model``, ``train`` or a method's
+    name), as ``--set SCOPE.KEY=VALUE`` gives them. ``epochs`` and ``k`` default to 20 (2 and 5 when
     ``quick``). Everything is checked on construction: bad input raises ``InputError``.
     """
 
@@ -172,6 +166,11 @@ class Execution:
         if self.ray_address is not None and self.backend != "ray":
             raise InputError("--ray-address: only with --backend ray")
 
+    def job_options(self, resume: bool) -> dict[str, Any]:
+        """The keyword options of :func:`run_job` that come from how the run executes."""
+        live, loggers = self.live_target(), self.loggers
+        return {"threads": self.threads, "resume": resume, "live": live, "loggers": loggers}
+
     def live_target(self) -> str | None:
         """Where jobs stream to: the spawned viewer's default address, or the given one."""
         return None if self.rerun is None else "connect" if self.rerun == "spawn" else self.rerun
@@ -186,25 +185,6 @@ class Job:
 
     def folder(self, out: Path) -> Path:
         return out / "jobs" / self.method / f"seed_{self.seed_index}"
-
-
-@dataclass
-class JobInputs:
-    """What every job of an experiment reads: the learner's tasks and what the recording draws."""
-
-    tasks: list[Task]
-    showcases: list[Showcase]
-
-
-@dataclass
-class Curriculum:
-    """The generated domains of an experiment, as the learner and the recording use them."""
-
-    specs: list[DomainSpec]
-    domains: list
-    inputs: JobInputs
-    rollouts: dict[str, tuple]
-    labels: list[str]
 
 
 def parse_settings(items: list[str]) -> dict[str, dict[str, Any]]:
@@ -233,65 +213,6 @@ def parse_value(text: str) -> bool | int | float | str:
         except ValueError:
             pass
     return text
-
-
-def make_tasks(
-    specs: list[DomainSpec], seed: int, quick: bool, cache: Path, workers: int
-) -> tuple[list[Task], list]:
-    """Domains of the curriculum as learner tasks (windows per split)."""
-    tasks, domains = [], []
-    for spec in tqdm(specs, desc="domains", unit="domain", file=sys.stderr, leave=False):
-        quick_splits = Splits(*get_generator(spec.family.generator).quick_splits) if quick else None
-        domain = build_domain(spec, seed, cache, quick_splits, workers)
-        splits = {}
-        for split in SPLITS:
-            windows = domain.windows(split)
-            if windows is not None and quick and len(windows) > QUICK_WINDOWS:
-                windows = windows.subset(np.arange(QUICK_WINDOWS))
-            splits[split] = windows
-        if splits["train"] is None or splits["test"] is None:
-            raise InputError(f"domain {domain.name}: no 20-frame window in its train or test split")
-        value = spec.value if isinstance(spec.value, int | float) else None
-        tasks.append(Task(domain.name, splits["train"], splits["val"], splits["test"], value))
-        domains.append(domain)
-    return tasks, domains
-
-
-def make_showcases(specs: list[DomainSpec], tasks: list[Task], seed: int) -> tuple[list, dict]:
-    """Per task: evenly spaced sample test scenes and a longer rollout cut into windows.
-
-    Returns the showcases and, per task, the rollout's positions and agent ids.
-    """
-    showcases, rollouts = [], {}
-    for spec, task in zip(specs, tasks, strict=True):
-        count = min(SAMPLE_SCENES, len(task.test))
-        scenes = task.test.subset(np.linspace(0, len(task.test) - 1, count).astype(int))
-        scene = rollout_scene(spec, seed, ROLLOUT_FRAMES)
-        windows = cut_windows(scene) if scene is not None else None
-        show = Showcase(task.name, scenes)
-        if windows is not None:
-            starts, _ = window_members(scene, windows.positions.shape[1])
-            show.rollout_windows = windows
-            show.rollout_frames = starts + windows.obs_len - 1
-            rollouts[task.name] = (scene.positions, scene.agent_ids)
-        showcases.append(show)
-    return showcases, rollouts
-
-
-def learner_tasks(
-    scenario: str,
-    seed: int = 0,
-    quick: bool = False,
-    data: dict[str, Any] | None = None,
-    cache: Path | None = Path(".cache/domains"),
-    scenarios_dir: tuple[Path, ...] = (),
-) -> list[Task]:
-    """The learner's tasks of a scenario, one per domain, generated or read from ``cache``.
-
-    ``data`` overrides knobs or split sizes, as ``--set data.KEY=VALUE`` does.
-    """
-    specs = parse_scenario(scenario, list(scenarios_dir), data)
-    return make_tasks(specs, seed, quick, cache, os.cpu_count() or 1)[0]
 
 
 def prepare(config: ExperimentConfig, execution: Execution) -> Curriculum:
@@ -469,7 +390,7 @@ def run_experiment(
     curriculum = prepare(config, execution)
     truth = None
     if config.record or execution.rerun:
-        path = out / "truth.partial.rrd" if config.record else None
+        path = out / TRUTH_PART if config.record else None
         truth = record_truth(config, curriculum, path, execution.rerun)
     jobs = config.jobs()
     tasks = len(curriculum.inputs.tasks)
@@ -488,12 +409,7 @@ def run_experiment(
             backend=execution.backend,
             processes=execution.jobs,
             ray_address=execution.ray_address,
-            options={
-                "threads": execution.threads,
-                "resume": resume,
-                "live": execution.live_target(),
-                "loggers": execution.loggers,
-            },
+            options=execution.job_options(resume),
             progress=follow(bar),
             tasks_of=lambda _job: tasks,
         )

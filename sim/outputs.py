@@ -34,9 +34,11 @@ from viz import figures
 from viz.recording import merge_recordings
 
 if TYPE_CHECKING:
-    from sim.experiment import Curriculum, Execution, ExperimentConfig, JobResult
+    from sim.curriculum import Curriculum
+    from sim.experiment import Execution, ExperimentConfig, JobResult
 
 RUNS = Path("runs")
+TRUTH_PART = "truth.partial.rrd"  # the run's own recording until it is merged with the jobs'
 
 
 def run_root(scenario: str) -> Path:
@@ -203,9 +205,14 @@ def write_outputs(
         "domains": [domain_summary(d) for d in curriculum.domains],
         "windows": {t.name: _window_counts(t) for t in curriculum.inputs.tasks},
     }
-    write_text_atomic(out / "run_card.json", json.dumps(run_card, indent=1) + "\n")
-    run = {"quick": config.quick, "epochs": config.epochs, "seeds": config.seeds}
-    run["wall_seconds"] = wall
+    card = json.dumps(run_card, indent=1)
+    write_text_atomic(out / "run_card.json", card + "\n")
+    run = {
+        "quick": config.quick,
+        "epochs": config.epochs,
+        "seeds": config.seeds,
+        "wall_seconds": wall,
+    }
     report = markdown_report(config.scenario, labels, config.k, summary, run)
     write_text_atomic(out / "report.md", report)
     families = [s.family.name for s in curriculum.specs]
@@ -219,12 +226,10 @@ def write_outputs(
         samples = {show.task: show.scenes for show in curriculum.inputs.showcases}
         figures.prediction_grid(samples, drawn, out / "figures" / "predictions.png")
     if truth is not None:
-        truth.log_run_card(
-            f"{report}\n## Run card\n\n```json\n{json.dumps(run_card, indent=1)}\n```\n"
-        )
+        truth.log_run_card(f"{report}\n## Run card\n\n```json\n{card}\n```\n")
         truth.close()
         if config.record:
-            parts = [out / "truth.partial.rrd"]
+            parts = [out / TRUTH_PART]
             parts += [r.job.folder(out) / "recording.rrd" for r in results if r.predictions]
             merge_recordings(parts, out / "recording.rrd")
             parts[0].unlink()

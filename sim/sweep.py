@@ -36,7 +36,7 @@ from sim.experiment import (
     record_truth,
     run_job,
 )
-from sim.outputs import claim, run_root, write_outputs
+from sim.outputs import TRUTH_PART, claim, run_root, write_outputs
 from sim.run import add_experiment_options, execution_of, experiment_options
 from viz.cli import guarded
 
@@ -152,12 +152,6 @@ def run_sweep(
         planned.append((label, config, folder, prepare(config, execution)))
     items = [(i, job) for i, (_, config, _, _) in enumerate(planned) for job in config.jobs()]
     shared = [(config, curriculum.inputs, folder) for _, config, folder, curriculum in planned]
-    options = {
-        "threads": execution.threads,
-        "resume": resume,
-        "live": None,
-        "loggers": execution.loggers,
-    }
     tasks = [len(curriculum.inputs.tasks) for *_, curriculum in planned]
     with tqdm(total=sum(tasks[i] for i, _ in items), desc="tasks", file=sys.stderr) as bar:
         results = run_jobs(
@@ -167,7 +161,7 @@ def run_sweep(
             execution.backend,
             execution.jobs,
             execution.ray_address,
-            options,
+            execution.job_options(resume),
             follow(bar),
             lambda item: tasks[item[0]],
         )
@@ -175,7 +169,7 @@ def run_sweep(
     entries, rows = [], {c: [] for c in COLUMNS}
     for i, (label, config, folder, curriculum) in enumerate(planned):
         mine = [r for (index, _), r in zip(items, results, strict=True) if index == i]
-        path = folder / "truth.partial.rrd"
+        path = folder / TRUTH_PART
         truth = record_truth(config, curriculum, path, None) if config.record else None
         metrics = write_outputs(folder, config, execution, curriculum, mine, truth, wall, argv)
         entries.append((label, config, metrics))

@@ -24,23 +24,39 @@ LOGGERS = ("csv", "tensorboard")
 ROW_METRICS = ("ade", "fde", "ade_k1", "fde_k1")
 
 
+def epoch_step(task: int, epoch: int, epochs: int) -> int:
+    """The global epoch of ``epoch`` of task ``task``, counted across the curriculum."""
+    return task * epochs + epoch
+
+
+def task_step(task: int, epochs: int) -> int:
+    """The global epoch that ended task ``task``: where its results are logged."""
+    return max(0, epoch_step(task + 1, -1, epochs))
+
+
+def diagnostic_scalars(diagnostics: dict[str, Any]) -> Iterator[tuple[str, float]]:
+    """The numbers of a task's diagnostics; per-task lists averaged over the tasks seen."""
+    for key, value in diagnostics.items():
+        if isinstance(value, list):
+            value = float(np.mean(value)) if value else None
+        if isinstance(value, int | float):
+            yield key, float(value)
+
+
 def scalars(event: str, data: dict[str, Any], epochs: int, tasks: list[str]) -> Iterator:
     """(step, name, value) of every number of a trainer event."""
     if event == "epoch_end":
-        step = data["task"] * epochs + data["epoch"]
+        step = epoch_step(data["task"], data["epoch"], epochs)
         for key, value in data.items():
             if key not in ("task", "epoch"):
                 yield step, key, float(value)
     elif event == "task_end":
-        step = max(0, (data["task"] + 1) * epochs - 1)
+        step = task_step(data["task"], epochs)
         for metric in ROW_METRICS:
             for name, value in zip(tasks, data["row"].get(metric, []), strict=False):
                 yield step, f"matrix_{metric}/{name}", float(value)
-        for key, value in (data.get("diagnostics") or {}).items():
-            if isinstance(value, list):
-                value = float(np.mean(value)) if value else None
-            if isinstance(value, int | float):
-                yield step, f"diagnostics/{key}", float(value)
+        for key, value in diagnostic_scalars(data.get("diagnostics") or {}):
+            yield step, f"diagnostics/{key}", value
 
 
 class CSVLogger:

@@ -10,6 +10,7 @@ import numpy as np
 from c2inet.data import Windows
 from c2inet.metrics import best_sample, displacement_errors
 from c2inet.trainer import sample_predictions
+from viz.loggers import epoch_step, task_step
 from viz.recording import RunRecorder
 
 
@@ -39,7 +40,7 @@ class RecordingObserver:
 
     def __call__(self, event: str, data: dict[str, Any]) -> None:
         if event == "epoch_end":
-            epoch = data["task"] * self.epochs + data["epoch"]
+            epoch = epoch_step(data["task"], data["epoch"], self.epochs)
             self.recorder.log_epoch(self.method, {**data, "global_epoch": epoch}, self.colour)
         elif event == "task_end":
             self._task_end(data)
@@ -50,7 +51,7 @@ class RecordingObserver:
 
     def _task_end(self, data: dict[str, Any]) -> None:
         model, trained = data["model"], data["task"]
-        when = {"task": trained, "epoch": max(0, (trained + 1) * self.epochs - 1)}
+        when = {"task": trained, "epoch": task_step(trained, self.epochs)}
         tasks = [s.task for s in self.showcases]
         self.recorder.log_matrix_row(self.method, when, tasks, data["row"], self.colour)
         if data.get("diagnostics"):

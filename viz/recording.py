@@ -27,6 +27,7 @@ import rerun.blueprint as rrb
 from c2inet.errors import InputError
 from c2inet.files import write_atomic
 from viz.colours import FUTURE, OBSERVED, legend_markdown
+from viz.loggers import diagnostic_scalars
 
 Colour = tuple[int, int, int]
 
@@ -287,11 +288,8 @@ class RunRecorder:
         """The confounder's diagnostics after a task (``c2inet.diagnostics``), as scalars at
         ``when``; per-task lists are averaged over the tasks seen."""
         self._time(**when)
-        for key, value in diagnostics.items():
-            if isinstance(value, list):
-                value = float(np.mean(value)) if value else None
-            if isinstance(value, int | float):
-                self._scalar(f"diagnostics/{method}/{key}", value, colour)
+        for key, value in diagnostic_scalars(diagnostics):
+            self._scalar(f"diagnostics/{method}/{key}", value, colour)
 
     def log_queue(
         self, method: str, when: dict[str, int], means: np.ndarray, weights: np.ndarray

@@ -1,0 +1,107 @@
+"""A curriculum as the learner and the recording take it: tasks of windows, and showcases.
+
+``learner_tasks("crowd_noise_0.1..0.3")`` is the one call from a scenario to the learner's
+tasks; ``make_showcases`` picks what the recording draws of each task.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from c2inet.errors import InputError
+from c2inet.trainer import Task
+from sim.data import SPLITS, cut_windows, window_members
+from sim.domains import build_domain, rollout_scene
+from sim.families import Splits
+from sim.generators import get_generator
+from sim.scenario import DomainSpec, parse_scenario
+from viz.observer import Showcase
+
+QUICK_WINDOWS = 24  # at most this many windows per split in --quick runs (real data)
+SAMPLE_SCENES = 4  # test scenes per task drawn in the recording
+ROLLOUT_FRAMES = 50  # frames of the longer episode played per domain (20 s at 0.4 s)
+
+
+@dataclass
+class JobInputs:
+    """What every job of an experiment reads: the learner's tasks and what the recording draws."""
+
+    tasks: list[Task]
+    showcases: list[Showcase]
+
+
+@dataclass
+class Curriculum:
+    """The generated domains of an experiment, as the learner and the recording use them."""
+
+    specs: list[DomainSpec]
+    domains: list
+    inputs: JobInputs
+    rollouts: dict[str, tuple]
+    labels: list[str]
+
+
+def make_tasks(
+    specs: list[DomainSpec], seed: int, quick: bool, cache: Path, workers: int
+) -> tuple[list[Task], list]:
+    """Domains of the curriculum as learner tasks (windows per split)."""
+    tasks, domains = [], []
+    for spec in tqdm(specs, desc="domains", unit="domain", file=sys.stderr, leave=False):
+        quick_splits = Splits(*get_generator(spec.family.generator).quick_splits) if quick else None
+        domain = build_domain(spec, seed, cache, quick_splits, workers)
+        splits = {}
+        for split in SPLITS:
+            windows = domain.windows(split)
+            if windows is not None and quick and len(windows) > QUICK_WINDOWS:
+                windows = windows.subset(np.arange(QUICK_WINDOWS))
+            splits[split] = windows
+        if splits["train"] is None or splits["test"] is None:
+            raise InputError(f"domain {domain.name}: no 20-frame window in its train or test split")
+        value = spec.value if isinstance(spec.value, int | float) else None
+        tasks.append(Task(domain.name, splits["train"], splits["val"], splits["test"], value))
+        domains.append(domain)
+    return tasks, domains
+
+
+def make_showcases(specs: list[DomainSpec], tasks: list[Task], seed: int) -> tuple[list, dict]:
+    """Per task: evenly spaced sample test scenes and a longer rollout cut into windows.
+
+    Returns the showcases and, per task, the rollout's positions and agent ids.
+    """
+    showcases, rollouts = [], {}
+    for spec, task in zip(specs, tasks, strict=True):
+        count = min(SAMPLE_SCENES, len(task.test))
+        scenes = task.test.subset(np.linspace(0, len(task.test) - 1, count).astype(int))
+        scene = rollout_scene(spec, seed, ROLLOUT_FRAMES)
+        windows = cut_windows(scene) if scene is not None else None
+        show = Showcase(task.name, scenes)
+        if windows is not None:
+            starts, _ = window_members(scene, windows.positions.shape[1])
+            show.rollout_windows = windows
+            show.rollout_frames = starts + windows.obs_len - 1
+            rollouts[task.name] = (scene.positions, scene.agent_ids)
+        showcases.append(show)
+    return showcases, rollouts
+
+
+def learner_tasks(
+    scenario: str,
+    seed: int = 0,
+    quick: bool = False,
+    data: dict[str, Any] | None = None,
+    cache: Path | None = Path(".cache/domains"),
+    scenarios_dir: tuple[Path, ...] = (),
+) -> list[Task]:
+    """The learner's tasks of a scenario, one per domain, generated or read from ``cache``.
+
+    ``data`` overrides knobs or split sizes, as ``--set data.KEY=VALUE`` does.
+    """
+    specs = parse_scenario(scenario, list(scenarios_dir), data)
+    return make_tasks(specs, seed, quick, cache, os.cpu_count() or 1)[0]
