@@ -11,7 +11,7 @@ multiplied back, so pedestrians and vehicles alike reach the network at unit siz
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import torch
@@ -22,6 +22,7 @@ from c2inet.batch import Batch, make_batch, variety_loss
 from c2inet.data import OBS_LEN, Windows
 from c2inet.prior import (
     GaussianMixture,
+    LearnablePrior,
     PriorQueue,
     QueueConfig,
     gaussian_log_prob,
@@ -63,7 +64,15 @@ class ModelConfig:
             raise ValueError(f"beta_x must be at least 0, got {self.beta_x}")
 
 
-def _positions(batch: Batch, rel: torch.Tensor) -> torch.Tensor:
+class LossOutput(NamedTuple):
+    """A training step's loss, its parts for the logs, and the model output it came from."""
+
+    loss: torch.Tensor
+    parts: dict[str, float]
+    output: torch.Tensor  # predicted normalised future displacements (12, S, N, 2)
+
+
+def to_positions(batch: Batch, rel: torch.Tensor) -> torch.Tensor:
     """Normalised displacements (12, S, N, 2) -> absolute positions in metres (S, 12, N, 2)."""
     return (batch.obs[-1] + (rel * batch.scale).cumsum(0)).transpose(0, 1)
 
@@ -95,17 +104,25 @@ class Predictor(nn.Module):
         error = pred_rel - (batch.fut_rel / batch.scale)[:, None]
         return (error**2).sum(dim=(0, 3)) / (2 * self.config.likelihood_std**2)
 
-    def loss(self, batch: Batch, k_train: int = 1) -> tuple[torch.Tensor, dict[str, float]]:
+    def loss(self, batch: Batch, k_train: int = 1) -> LossOutput:
         """The training loss; with ``k_train`` > 1 the variety loss over that many samples."""
         cond = self._context_with_noise(self.context(batch), k_train)
-        loss = variety_loss(self.nll(batch, self.decode(batch, cond)), batch)
-        return loss, {"nll": loss.item()}
+        pred = self.decode(batch, cond)
+        loss = variety_loss(self.nll(batch, pred), batch)
+        return LossOutput(loss, {"nll": loss.item()}, pred)
+
+    def point(self, batch: Batch) -> torch.Tensor:
+        """The noise-free prediction, normalised displacements (12, N, 2), differentiable: what
+        distillation methods (LwF, DER++) hold the model to."""
+        context = self.context(batch)
+        cond = torch.cat([context, context.new_zeros(len(context), self.config.latent_dim)], -1)
+        return self.decode(batch, cond[None])[:, 0]
 
     @torch.no_grad()
     def predict(self, batch: Batch, samples: int) -> torch.Tensor:
         """K sampled futures as absolute positions in metres, (K, 12, N, 2)."""
         cond = self._context_with_noise(self.context(batch), samples)
-        return _positions(batch, self.decode(batch, cond))
+        return to_positions(batch, self.decode(batch, cond))
 
     def evaluation_variants(self) -> dict[str, dict]:
         """Other ways to predict that the trainer also scores, by metric suffix."""
@@ -193,10 +210,16 @@ class C2INetModel(Predictor):
     Separate trunks read the backbone's context: Q(Z|X) from each agent's, Q(C|X) from each
     agent's too, or from the scene's mean context with ``c_per="scene"`` (one confounder shared
     by a scene's agents). A past decoder reconstructs the observed displacements from [z, c]
-    (GCRL's E1), and C is scored against the prior queue's training prior (its KL, Eq 10).
+    (GCRL's E1), and C is scored against the prior queue's training prior (its KL, Eq 10), or
+    against a learnt ``prior`` (the MoG and GCRL baselines).
     """
 
-    def __init__(self, config: ModelConfig, queue: QueueConfig | None = None):
+    def __init__(
+        self,
+        config: ModelConfig,
+        queue: QueueConfig | None = None,
+        prior: LearnablePrior | None = None,
+    ):
         super().__init__(config, cond_dim=config.z_dim + config.c_dim)
         width = self.backbone.context_dim
         self.to_z = GaussianHead(width, config.z_dim)
@@ -204,7 +227,7 @@ class C2INetModel(Predictor):
         self.past = nn.Sequential(
             nn.Linear(config.z_dim + config.c_dim, 64), nn.Tanh(), nn.Linear(64, 2 * (OBS_LEN - 1))
         )
-        self.queue = PriorQueue(config.c_dim, queue)
+        self.queue = PriorQueue(config.c_dim, queue) if prior is None else prior
         self.anchors: Anchors | None = None  # stored after each task by the method
 
     @property
@@ -292,7 +315,7 @@ class C2INetModel(Predictor):
             held["distill_encoder"] = skl.mean()
         return held
 
-    def loss(self, batch: Batch, k_train: int = 1) -> tuple[torch.Tensor, dict[str, float]]:
+    def loss(self, batch: Batch, k_train: int = 1) -> LossOutput:
         """Eq 10 with the variety loss over ``k_train`` samples, plus the queue's penalties."""
         cfg = self.config
         anchors, hold_decoder, hold_encoder = self._protection()
@@ -321,7 +344,12 @@ class C2INetModel(Predictor):
             for name, held in self._held(anchors, anchor_future, hold_encoder).items():
                 loss = loss + self.queue.config.distill_weight * held
                 parts[name] = held.item()
-        return loss, parts
+        return LossOutput(loss, parts, pred)
+
+    def point(self, batch: Batch) -> torch.Tensor:
+        """The prediction at the posterior means of Z and C, (12, N, 2), differentiable."""
+        z, c = self.latents(batch, self.posteriors(batch), 1, "posterior_mean", z_mean=True)
+        return self.decode(batch, self.conditions(batch, z, c))[:, 0]
 
     @torch.no_grad()
     def predict(
@@ -338,7 +366,7 @@ class C2INetModel(Predictor):
         """
         post = self.posteriors(batch) if post is None else post
         z, c = self.latents(batch, post, samples, c_source or self.config.c_source, z_mean)
-        return _positions(batch, self.decode(batch, self.conditions(batch, z, c)))
+        return to_positions(batch, self.decode(batch, self.conditions(batch, z, c)))
 
     def evaluation_variants(self) -> dict[str, dict]:
         other = "posterior" if self.config.c_source == "prior" else "prior"

@@ -280,3 +280,70 @@ class PriorQueue:
     def load_state_dict(self, state: dict[str, torch.Tensor]) -> None:
         self.mixture = GaussianMixture(state["means"], state["logvars"], state["weights"])
         self.owners = state["owners"].tolist()
+
+
+class LearnablePrior(torch.nn.Module):
+    """A mixture prior over C trained with the model, for the MoG and GCRL baselines.
+
+    ``components`` Gaussians are parameters, learnt by the training KL; :meth:`freeze` appends
+    them, fixed, to the ``frozen`` ones (MoG keeps each finished task's). Weights are learnt
+    logits (GCRL) or uniform over every component (MoG). It answers what the model and the
+    diagnostics ask of a :class:`PriorQueue`: ``mixture``, ``training_prior``, ``log_prob``,
+    ``owners`` and ``config`` (no queue regularisers).
+    """
+
+    def __init__(self, dim: int, components: int, learn_weights: bool):
+        super().__init__()
+        self.means = torch.nn.Parameter(torch.randn(components, dim))
+        self.logvars = torch.nn.Parameter(torch.zeros(components, dim))
+        self.logits = torch.nn.Parameter(torch.zeros(components), requires_grad=learn_weights)
+        self.frozen = GaussianMixture(torch.zeros(0, dim), torch.zeros(0, dim), torch.zeros(0))
+        self.frozen_owners: list[int] = []
+        self.owner = 0  # the task the learnt components belong to now
+        self.config = QueueConfig(divergence=False, task_kl=False)
+
+    def __len__(self) -> int:
+        return len(self.frozen) + len(self.means)
+
+    @property
+    def mixture(self) -> GaussianMixture:
+        logits = torch.cat([torch.zeros(len(self.frozen)), self.logits])
+        return GaussianMixture(
+            torch.cat([self.frozen.means, self.means]),
+            torch.cat([self.frozen.logvars, self.logvars.clamp(-8, 4)]),
+            torch.softmax(logits, 0),
+        )
+
+    @property
+    def owners(self) -> list[int]:
+        return self.frozen_owners + [self.owner] * len(self.means)
+
+    def training_prior(self) -> GaussianMixture:
+        return self.mixture
+
+    def log_prob(self, c: torch.Tensor) -> torch.Tensor:
+        return self.mixture.log_prob(c)
+
+    def freeze(self, next_owner: int) -> None:
+        """Append the learnt components, fixed, to the frozen ones; learning goes on for
+        ``next_owner`` from where they are."""
+        means = torch.cat([self.frozen.means, self.means.detach().clone()])
+        logvars = torch.cat([self.frozen.logvars, self.logvars.detach().clamp(-8, 4)])
+        self.frozen = GaussianMixture(means, logvars, torch.full((len(means),), 1 / len(means)))
+        self.frozen_owners += [self.owner] * len(self.means)
+        self.owner = next_owner
+
+    def get_extra_state(self) -> dict:
+        """The frozen components travel in the model's ``state_dict`` (checkpoints, resume)."""
+        f = self.frozen
+        return {
+            "means": f.means,
+            "logvars": f.logvars,
+            "weights": f.weights,
+            "owners": torch.tensor(self.frozen_owners, dtype=torch.int64),
+            "owner": self.owner,
+        }
+
+    def set_extra_state(self, state: dict) -> None:
+        self.frozen = GaussianMixture(state["means"], state["logvars"], state["weights"])
+        self.frozen_owners, self.owner = state["owners"].tolist(), int(state["owner"])

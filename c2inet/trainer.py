@@ -163,7 +163,7 @@ class ContinualTrainer:
         start = self._replay(model, optimiser, rng, result) if resume else 0
         for i in range(start, n):
             task = self.tasks[i]
-            seen = [t.train for t in self.tasks[:i]] if method.sees_old_tasks else []
+            seen = self.earlier_training_data(i) if method.sees_old_tasks else []
             ctx = TaskContext(i, task.name, task.train, model, optimiser, rng, seen)
             if method.trains:
                 self._train_task(ctx)
@@ -184,6 +184,11 @@ class ContinualTrainer:
             self._task_end(i, model, result)
         result.history = self.history
         return result
+
+    def earlier_training_data(self, index: int) -> list[Windows]:
+        """The training data of the tasks before ``index``: what only a method that declares
+        ``sees_old_tasks`` (the joint reference) is given."""
+        return [t.train for t in self.tasks[:index]]
 
     def _task_end(self, i: int, model: torch.nn.Module, result: Result) -> None:
         self._notify(
@@ -244,17 +249,18 @@ class ContinualTrainer:
             totals: dict[str, float] = {}
             steps = 0
             for batch in batches(data, cfg.batch_scenes, ctx.rng):
-                loss, parts = model.loss(batch, cfg.k_train)
-                extra = method.extra_loss(model)
-                if extra is not None:
-                    loss = loss + extra
-                    parts["penalty"] = extra.item()
+                ctx.batch = batch
+                ctx.loss, ctx.parts, ctx.output = model.loss(batch, cfg.k_train)
+                method.before_backward(ctx)
                 ctx.optimiser.zero_grad()
-                loss.backward()
+                ctx.loss.backward()
+                method.after_backward(ctx)
                 ctx.optimiser.step()
-                for key, value in parts.items():
+                method.after_step(ctx)
+                for key, value in ctx.parts.items():
                     totals[key] = totals.get(key, 0.0) + value
                 steps += 1
+            ctx.batch = ctx.output = ctx.loss = None
             method.after_epoch(ctx, epoch)
             record = {
                 "task": ctx.index,

@@ -40,7 +40,7 @@ def method_seconds(config, name: str, tasks: list[Task]) -> float:
             batch = next(batches(first.train, train.batch_scenes))
 
             def step() -> None:
-                loss, _ = model.loss(batch, train.k_train)
+                loss = model.loss(batch, train.k_train).loss
                 optimiser.zero_grad()
                 loss.backward()
                 optimiser.step()

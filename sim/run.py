@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 
 from c2inet.backbones import BACKBONES
+from c2inet.methods.base import discover
 from c2inet.report import caption, text_table
 from sim.backends import BACKENDS
 from sim.cli import add_threads, add_workers, parse, parser
@@ -40,7 +41,7 @@ def add_experiment_options(p) -> None:
     p.add_argument(
         "--methods",
         default=",".join(DEFAULT_METHODS),
-        help=f"comma-separated (default {','.join(DEFAULT_METHODS)})",
+        help=f"comma-separated, or all (default {','.join(DEFAULT_METHODS)})",
     )
     p.add_argument("--backbone", choices=sorted(BACKBONES), default="stgat")
     p.add_argument(
@@ -77,7 +78,11 @@ def add_experiment_options(p) -> None:
 def experiment_options(args) -> dict:
     """The fields of ``ExperimentConfig`` given by :func:`add_experiment_options`' options."""
     return {
-        "methods": tuple(n.strip() for n in args.methods.split(",") if n.strip()),
+        "methods": (
+            tuple(sorted(discover()))
+            if args.methods.strip() == "all"
+            else tuple(n.strip() for n in args.methods.split(",") if n.strip())
+        ),
         "seeds": args.seeds,
         "seed": args.seed,
         "epochs": args.epochs,

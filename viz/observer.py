@@ -58,8 +58,9 @@ class RecordingObserver:
             self.recorder.log_diagnostics(self.method, when, data["diagnostics"], self.colour)
         queue = getattr(model, "queue", None)
         if queue is not None:
+            mixture = queue.mixture.detached()
             self.recorder.log_queue(
-                self.method, when, queue.mixture.means.numpy(), queue.mixture.weights.numpy()
+                self.method, when, mixture.means.numpy(), mixture.weights.numpy()
             )
         for show in self.showcases:
             windows = show.scenes

@@ -1,9 +1,13 @@
 """The method contract: a small class adding behaviour to the one trainer through hooks.
 
-Hooks, in the order the trainer calls them (Avalanche-style): ``before_task``,
-``training_windows``, ``extra_loss`` (every step), ``after_epoch``, ``after_task``. A method
-says in its docstring which hooks it uses. What it keeps between tasks goes through
-``state_dict`` / ``load_state_dict``, so a run resumes exactly. Methods register by ``name``.
+Hooks, in the order the trainer calls them (Avalanche-style), each given the
+:class:`TaskContext`: ``before_task``, ``training_windows``, then at every step
+``before_backward`` (the batch, the model output and the loss are in the context; add penalties
+with ``ctx.add_loss``), ``after_backward`` (the gradients are there: project them),
+``after_step`` (the optimiser has moved the weights), then ``after_epoch`` and ``after_task``.
+A method says in its docstring which hooks it uses. What it keeps between tasks goes through
+``state_dict`` / ``load_state_dict``, so a run resumes exactly. Methods register by ``name`` and
+are found by :func:`discover`; :mod:`c2inet.checker` checks each against the contract.
 """
 
 from __future__ import annotations
@@ -17,6 +21,7 @@ from typing import Any, ClassVar
 import numpy as np
 import torch
 
+from c2inet.batch import Batch
 from c2inet.data import Windows
 from c2inet.errors import did_you_mean
 from c2inet.model import ModelConfig, Predictor
@@ -26,7 +31,8 @@ METHODS: dict[str, type[Method]] = {}
 
 @dataclass
 class TaskContext:
-    """What a hook may look at: the current task's data, the model and the optimiser."""
+    """What a hook may look at: the current task's data, the model and the optimiser, and during
+    a training step the batch, the model's output and the loss (as Avalanche's strategy)."""
 
     index: int  # 0-based position of the task in the curriculum
     name: str
@@ -35,6 +41,15 @@ class TaskContext:
     optimiser: torch.optim.Optimizer | None
     rng: np.random.Generator
     seen_train: list[Windows] = field(default_factory=list)  # earlier tasks (joint only)
+    batch: Batch | None = None  # the step's batch
+    output: torch.Tensor | None = None  # its predicted normalised displacements (12, S, N, 2)
+    loss: torch.Tensor | None = None  # the step's loss so far
+    parts: dict[str, float] = field(default_factory=dict)  # the loss's parts, for the logs
+
+    def add_loss(self, name: str, value: torch.Tensor) -> None:
+        """Add a penalty to the step's loss, logged as ``name``."""
+        self.loss = self.loss + value
+        self.parts[name] = value.item()
 
 
 @dataclass(frozen=True)
@@ -69,6 +84,9 @@ class Method:
     trains: ClassVar[bool] = True
     sees_old_tasks: ClassVar[bool] = False  # True only for the joint upper reference
     Options: ClassVar[type] = NoOptions  # a frozen dataclass of the method's options
+    # options that switch the method's mechanism off, changing nothing else (no other use of
+    # the random streams): the checker requires them to change the numbers
+    inert: ClassVar[dict[str, Any] | None] = None
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)
@@ -82,20 +100,25 @@ class Method:
         return Predictor(self.model_config)
 
     def before_task(self, ctx: TaskContext) -> None:
-        pass
+        """Before the task's first epoch."""
 
     def training_windows(self, ctx: TaskContext) -> Windows:
         return ctx.train
 
-    def extra_loss(self, model: torch.nn.Module) -> torch.Tensor | None:
-        """A penalty added to every training step's loss (None: nothing)."""
-        return None
+    def before_backward(self, ctx: TaskContext) -> None:
+        """Every step, before the backward pass: add penalties with ``ctx.add_loss``."""
+
+    def after_backward(self, ctx: TaskContext) -> None:
+        """Every step, after the backward pass: the gradients may be changed here."""
+
+    def after_step(self, ctx: TaskContext) -> None:
+        """Every step, after the optimiser step."""
 
     def after_epoch(self, ctx: TaskContext, epoch: int) -> None:
-        pass
+        """After every epoch of the task (0-based ``epoch``)."""
 
     def after_task(self, ctx: TaskContext) -> None:
-        pass
+        """After the task's last epoch, before it is evaluated."""
 
     def state_dict(self, model: torch.nn.Module) -> dict[str, Any]:
         """All the method keeps between tasks (tensors and plain values only), saved with each

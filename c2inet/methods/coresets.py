@@ -32,7 +32,9 @@ class Coresets(Method):
 
     def after_task(self, ctx: TaskContext) -> None:
         count = min(self.options.per_task, len(ctx.train))
-        self.buffer.append(ctx.train.subset(ctx.rng.choice(len(ctx.train), count, replace=False)))
+        if count:
+            kept = ctx.rng.choice(len(ctx.train), count, replace=False)
+            self.buffer.append(ctx.train.subset(kept))
 
     def state_dict(self, model) -> dict[str, Any]:
         return {"buffer": [w.state_dict() for w in self.buffer]}

@@ -3,7 +3,7 @@
 After each task the diagonal Fisher of the loss is estimated from squared gradients over the
 task's batches and folded into a running Fisher (``gamma`` decays the old one); the penalty
 ``lambda/2 * sum F (theta - theta*)^2`` then anchors later training.
-Hooks: ``extra_loss``, ``after_task``. Example: ``--methods ewc``
+Hooks: ``before_backward``, ``after_task``. Example: ``--methods ewc``
 """
 
 from dataclasses import dataclass
@@ -27,6 +27,7 @@ class EWC(Method):
 
     name = "ewc"
     Options = EWCOptions
+    inert = {"strength": 0.0}
 
     def __init__(self, model_config, options: dict[str, Any] | None = None):
         super().__init__(model_config, options)
@@ -40,8 +41,9 @@ class EWC(Method):
                 total = total + (self.fisher[name] * (p - self.anchor[name]) ** 2).sum()
         return 0.5 * self.options.strength * total
 
-    def extra_loss(self, model: torch.nn.Module) -> torch.Tensor | None:
-        return self.penalty(model) if self.fisher else None
+    def before_backward(self, ctx: TaskContext) -> None:
+        if self.fisher:
+            ctx.add_loss("penalty", self.penalty(ctx.model))
 
     def after_task(self, ctx: TaskContext) -> None:
         model = ctx.model
@@ -49,8 +51,7 @@ class EWC(Method):
         count = 0
         for batch in batches(ctx.train, self.options.fisher_batch_scenes, ctx.rng):
             model.zero_grad()
-            loss, _ = model.loss(batch)
-            loss.backward()
+            model.loss(batch).loss.backward()
             for n, p in model.named_parameters():
                 if p.grad is not None:
                     fisher[n] += p.grad.detach() ** 2

@@ -111,9 +111,9 @@ def test_the_queue_free_control_differs_from_c2inet_only_by_the_queue():
         torch.testing.assert_close(a, b, msg=name)
     batch = make_batch(toy_tasks(8)[0].train)
     torch.manual_seed(1)
-    loss_full, _ = full.loss(batch, 2)
+    loss_full = full.loss(batch, 2).loss
     torch.manual_seed(1)
-    loss_control, _ = control.loss(batch, 2)
+    loss_control = control.loss(batch, 2).loss
     torch.testing.assert_close(loss_full, loss_control)  # same queue (N(0, I)), same loss
     result = ContinualTrainer(
         get_method("c2inet-noqueue")(config), toy_tasks(8), TrainConfig(epochs=2, k=2)
@@ -192,7 +192,7 @@ def test_past_reconstruction_trains_the_past_decoder_only_when_weighted():
     for beta_x in (0.0, 1.0):
         torch.manual_seed(0)
         model = get_method("c2inet-noqueue")(ModelConfig(beta_x=beta_x)).build_model()
-        model.loss(batch, 2)[0].backward()
+        model.loss(batch, 2).loss.backward()
         grads[beta_x] = sum(p.grad.abs().sum().item() for p in model.past.parameters())
     assert grads[0.0] == 0.0 and grads[1.0] > 0
 

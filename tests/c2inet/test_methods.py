@@ -1,62 +1,104 @@
-"""Every registered method against one contract (as Gymnasium's env checker), resume included."""
+"""Every registered method against the library's checker (as Gymnasium's env checker), and the
+checker itself against methods broken on purpose: each check must be able to fail.
 
-import dataclasses
-import sys
+The broken methods here override ``before_backward`` and one more hook left unnamed on purpose.
+Example: ``pytest tests/c2inet/test_methods.py``
+"""
 
-import numpy as np
+import random
+
 import pytest
 
-from c2inet.methods.base import Method, discover
-from c2inet.model import ModelConfig
-from c2inet.trainer import ContinualTrainer, TrainConfig, load_checkpoint
-
-from toys import turning_tasks
+from c2inet.checker import MethodCheckError, check_method
+from c2inet.methods.base import discover
+from c2inet.methods.ewc import EWC
+from c2inet.methods.finetune import Finetune
+from c2inet.methods.lwf import LwF
+from c2inet.methods.si import SI
+from c2inet.trainer import ContinualTrainer
 
 METHODS = discover()
 
 
 @pytest.mark.parametrize("name", sorted(METHODS))
-def test_method_contract(name):
-    cls = METHODS[name]
-    assert issubclass(cls, Method) and cls.name == name and cls.__doc__
-    assert "Example" in sys.modules[cls.__module__].__doc__  # Mammoth-style: name, doc, example
-    assert dataclasses.is_dataclass(cls.Options)
-    model = cls(ModelConfig()).build_model()
-    assert callable(model.predict) and (not cls.trains or callable(model.loss))
+def test_every_method_passes_the_checker(name):
+    """Contract, metrics, determinism, resume after any task, no peeking, live mechanism."""
+    check_method(METHODS[name])
 
 
-def recorded_run(name, tasks, folder, resume=False):
-    """A run of method ``name`` and the (event, task or epoch) its observers received."""
-    events = []
-
-    def observe(event, data):
-        key = data["task"] if event == "task_end" else (data["task"], data["epoch"])
-        events.append((event, key, data.get("row") or data.get("nll")))
-
-    trainer = ContinualTrainer(
-        METHODS[name](ModelConfig()),
-        tasks,
-        TrainConfig(epochs=2, k=3, k_train=2),
-        checkpoint_dir=folder,
-        observers=[observe],
-    )
-    return trainer.run(resume=resume), events
+def test_the_paper_baselines_and_the_staples_are_registered():
+    paper = {"mog", "counterfactual", "invariant", "adaptive", "pecnet", "gcrl", "ewc", "coresets"}
+    staples = {"lwf", "si", "agem", "derpp"}
+    assert paper | staples | {"finetune", "joint", "cv", "c2inet-online"} <= set(METHODS)
 
 
-@pytest.mark.parametrize("name", sorted(METHODS))
-def test_a_resumed_run_equals_an_uninterrupted_one(tmp_path, name):
-    """Checkpoints carry all a method keeps: resuming after any task gives the same numbers,
-    and the observers see the same events (the finished tasks' are replayed)."""
-    tasks = turning_tasks(turns=(0.1, 0.2, 0.3))
-    whole, whole_events = recorded_run(name, tasks, tmp_path)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["task_00.pt", "task_01.pt", "task_02.pt"]
-    for finished in (1, 2):
-        for later in range(finished, 3):
-            (tmp_path / f"task_{later:02d}.pt").unlink(missing_ok=True)
-        resumed, events = recorded_run(name, tasks, tmp_path, resume=True)
-        for metric, matrix in whole.matrices.items():
-            np.testing.assert_array_equal(resumed.matrices[metric], matrix, err_msg=metric)
-        assert resumed.history == whole.history and resumed.summaries == whole.summaries
-        assert resumed.diagnostics == whole.diagnostics and events == whole_events
-    state = load_checkpoint(tmp_path / "task_02.pt")
-    assert state["task"] == 2 and len(state["history"]) == len(whole.history)
+class InertLwF(LwF):
+    """LwF whose distillation never runs."""
+
+    name = "test-inert-lwf"
+
+    def before_backward(self, ctx):
+        pass
+
+
+class Forgetful(SI):
+    """SI that saves nothing between tasks: a resumed run loses its importance."""
+
+    name = "test-forgetful-si"
+
+    def state_dict(self, model):
+        return {}
+
+    def load_state_dict(self, state, model):
+        pass
+
+
+class Noisy(Finetune):
+    """Fine-tuning with a term drawn from the operating system's randomness."""
+
+    name = "test-noisy"
+
+    def before_backward(self, ctx):
+        ctx.add_loss("noise", 1e-3 * random.SystemRandom().random() * ctx.loss)
+
+
+class Undocumented(EWC):
+    """EWC with an extra hook its module's docstring does not name."""
+
+    name = "test-undocumented"
+
+    def after_step(self, ctx):
+        pass
+
+
+@pytest.fixture
+def broken():
+    """Register the broken methods for one test only."""
+    yield
+    for cls in (InertLwF, Forgetful, Noisy, Undocumented):
+        METHODS.pop(cls.name, None)
+
+
+@pytest.mark.parametrize(
+    "cls, message",
+    [
+        (InertLwF, "inert"),
+        (Forgetful, "resumed after task"),
+        (Noisy, "same seed"),
+        (Undocumented, "after_step"),
+    ],
+)
+def test_the_checker_catches_broken_methods(broken, cls, message):
+    with pytest.raises(MethodCheckError, match=message):
+        check_method(cls)
+
+
+def test_the_checker_catches_a_trainer_that_leaks_later_tasks(monkeypatch):
+    """Were the joint reference handed every other task, not just the earlier ones."""
+
+    def leaky(self, index):
+        return [t.train for j, t in enumerate(self.tasks) if j != index]
+
+    monkeypatch.setattr(ContinualTrainer, "earlier_training_data", leaky)
+    with pytest.raises(MethodCheckError, match="the last task.s training data"):
+        check_method(METHODS["joint"])

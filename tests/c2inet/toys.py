@@ -2,8 +2,10 @@
 
 import numpy as np
 
+from c2inet.checker import turners, turning_tasks
 from c2inet.data import Windows
-from c2inet.trainer import Task
+
+__all__ = ["toy_windows", "walkers", "turners", "turning_tasks"]
 
 
 def toy_windows(scenes=12, seed=0) -> Windows:
@@ -26,22 +28,3 @@ def walkers(heading: float, scenes: int, seed: int) -> Windows:
     start = rng.uniform(-20, 20, (agents, 1, 2))
     positions = start + np.cumsum(steps, axis=1)
     return Windows(positions.astype(np.float32), np.arange(0, agents + 1, 2))
-
-
-def turners(turn: float, scenes: int, seed: int) -> Windows:
-    """3-agent scenes on arcs turning ``turn`` rad per frame: constant velocity cannot follow."""
-    rng = np.random.default_rng(seed)
-    agents = 3 * scenes
-    heading = rng.uniform(-np.pi, np.pi, (agents, 1)) + turn * np.arange(20)
-    steps = 0.4 * np.stack([np.cos(heading), np.sin(heading)], -1)
-    steps += rng.normal(0, 0.02, steps.shape)
-    positions = rng.uniform(-10, 10, (agents, 1, 2)) + np.cumsum(steps, axis=1)
-    return Windows(positions.astype(np.float32), np.arange(0, agents + 1, 3))
-
-
-def turning_tasks(turns=(0.1, 0.2), train=8) -> list[Task]:
-    """One task per turn rate, with ``train`` training scenes, 2 validation and 3 test scenes."""
-    return [
-        Task(f"turn_{t}", *(turners(t, n, 10 * i + s) for s, n in enumerate((train, 2, 3))), t)
-        for i, t in enumerate(turns)
-    ]

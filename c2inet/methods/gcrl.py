@@ -1,0 +1,37 @@
+"""GCRL (Bagi et al., ICML 2023): invariant Z and variant S, S under a learnable mixture prior.
+
+C2INet's network is GCRL's (the decoder sees [z, c] alone, the past is reconstructed, Z is held
+to N(0, I)); GCRL's prior on the variant latent (here C) is one mixture of ``components``
+Gaussians with learnt means, variances and weights, trained with the model on every task in
+turn: nothing protects it from forgetting. Test-time C comes from the posterior, as GCRL
+evaluates. Left out: the RealNVP coupling flows of GCRL's ``--coupling`` variant (this is its
+learnable-prior variant, the one without flows). No hooks. Example: ``--methods gcrl``
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import torch
+
+from c2inet.methods.base import Method
+from c2inet.model import C2INetModel
+from c2inet.prior import LearnablePrior
+
+
+@dataclass(frozen=True)
+class GCRLOptions:
+    components: int = 5  # GCRL's num_envs: Gaussians of the prior
+
+
+class GCRL(Method):
+    """The causal STGAT model with a learnt Gaussian-mixture prior, trained sequentially."""
+
+    name = "gcrl"
+    Options = GCRLOptions
+
+    def build_model(self) -> torch.nn.Module:
+        config = dataclasses.replace(self.model_config, c_source="posterior")
+        prior = LearnablePrior(config.c_dim, self.options.components, learn_weights=True)
+        return C2INetModel(config, prior=prior)

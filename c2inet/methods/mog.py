@@ -1,0 +1,38 @@
+"""MoG (the paper's baseline, from BooVAE's ``vae/model/mog.py``): a mixture-of-Gaussians prior
+over C that grows by a fixed number of learnable components per task.
+
+C2INet's network, with the prior queue replaced by ``per_task`` learnable Gaussians trained with
+the model through the KL of C; after each task they are frozen and appended to the prior, and the
+next task learns new ones starting from where they were. Weights are uniform over every
+component. The difference from C2INet is the prior's update rule alone: no boosting, no weight
+fit, no pruning, no anchors. Hook: ``after_task``. Example: ``--methods mog``
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+
+from c2inet.methods.base import Method, TaskContext
+from c2inet.model import C2INetModel
+from c2inet.prior import LearnablePrior
+
+
+@dataclass(frozen=True)
+class MoGOptions:
+    per_task: int = 5  # learnable Gaussians added by every task
+
+
+class MoG(Method):
+    """C2INet's network with a mixture prior of frozen per-task learnt Gaussians."""
+
+    name = "mog"
+    Options = MoGOptions
+
+    def build_model(self) -> torch.nn.Module:
+        prior = LearnablePrior(self.model_config.c_dim, self.options.per_task, learn_weights=False)
+        return C2INetModel(self.model_config, prior=prior)
+
+    def after_task(self, ctx: TaskContext) -> None:
+        ctx.model.queue.freeze(next_owner=ctx.index + 1)

@@ -1,0 +1,178 @@
+"""Each baseline's own mechanism is live: it changes what the model does, the way its paper says.
+
+(Methods with an ``inert`` switch, EWC, LwF, SI, DER++ and Invariant, are also checked by the
+checker: switching them off changes the numbers.)
+"""
+
+import numpy as np
+import pytest
+import torch
+
+from c2inet.batch import make_batch
+from c2inet.methods.base import TaskContext, get_method
+from c2inet.model import ModelConfig
+from c2inet.trainer import ContinualTrainer, TrainConfig
+
+from toys import turners, turning_tasks
+
+CONFIG = TrainConfig(epochs=2, k=3, k_train=2, diagnostics=False)
+
+
+def trained(name, options=None, tasks=None, observers=None):
+    """The method and its model after a run through ``tasks`` (two tasks of arcs)."""
+    method = get_method(name)(ModelConfig(), options)
+    models = []
+    trainer = ContinualTrainer(
+        method,
+        tasks or turning_tasks(),
+        CONFIG,
+        observers=[lambda e, d: models.append(d["model"]) if e == "task_end" else None]
+        + (observers or []),
+    )
+    return method, trainer.run(), models[-1]
+
+
+def test_agem_projects_steps_that_would_raise_the_memory_loss():
+    """Tasks turning opposite ways conflict: some steps are projected, and each projected step
+    no longer points against the memory's gradient."""
+    method, result, _ = trained("agem", tasks=turning_tasks(turns=(0.3, -0.3)))
+    assert result.summaries[0]["projected_steps"] == 0  # no memory during the first task
+    assert result.summaries[1]["projected_steps"] > 0
+    assert sum(len(w) for w in method.buffer) == 16  # 8 scenes of each task
+
+
+def test_agem_projection_removes_only_a_conflicting_component():
+    from c2inet.methods.agem import project
+
+    reference = torch.tensor([1.0, 0.0, 0.0])
+    step, projected = project(torch.tensor([-2.0, 1.0, 3.0]), reference)
+    assert projected and step @ reference == 0
+    torch.testing.assert_close(step, torch.tensor([0.0, 1.0, 3.0]))
+    agreeing = torch.tensor([2.0, 1.0, 3.0])
+    assert project(agreeing, reference) == (agreeing, False)
+
+
+def test_mog_freezes_each_tasks_components_and_keeps_them():
+    snapshots = []
+
+    def keep(event, data):
+        if event == "task_end":
+            snapshots.append(data["model"].queue.mixture.detached())
+
+    _, _, model = trained("mog", {"per_task": 3}, turning_tasks(turns=(0.1, 0.2, 0.3)), [keep])
+    assert [len(s) for s in snapshots] == [6, 9, 12]  # frozen + the 3 still learnt
+    assert model.queue.owners == [0] * 3 + [1] * 3 + [2] * 3 + [3] * 3
+    torch.testing.assert_close(snapshots[2].means[:6], snapshots[1].means[:6])  # frozen stay
+    assert not torch.allclose(snapshots[1].means[6:9], snapshots[0].means[3:6])  # learnt moved
+    torch.testing.assert_close(snapshots[2].weights, torch.full((12,), 1 / 12))
+
+
+def test_gcrl_learns_its_prior():
+    method = get_method("gcrl")(ModelConfig())
+    torch.manual_seed(0)
+    before = method.build_model().queue.mixture.detached()
+    _, _, model = trained("gcrl")
+    after = model.queue.mixture.detached()
+    assert not torch.allclose(after.means, before.means)
+    assert not torch.allclose(after.weights, before.weights)  # the weights are learnt too
+    assert model.config.c_source == "posterior"
+
+
+def test_counterfactual_subtracts_the_blank_past():
+    model = get_method("counterfactual")(ModelConfig()).build_model()
+    windows = turners(0.2, 4, 0)
+    still = windows.positions.copy()
+    still[:, :8] = still[:, 7:8]  # every agent standing at its last observed position
+    from c2inet.data import Windows
+
+    assert torch.count_nonzero(model.context(make_batch(Windows(still, windows.scene_start)))) == 0
+    assert model.context(make_batch(windows)).abs().sum() > 0
+
+
+def test_adaptive_freezes_all_but_the_style_after_the_first_task():
+    snapshots = []
+
+    def keep(event, data):
+        if event == "task_end":
+            snapshots.append({k: v.clone() for k, v in data["model"].state_dict().items()})
+
+    trained("adaptive", observers=[keep])
+    first, second = snapshots
+    changed = {k for k in first if not torch.equal(first[k], second[k])}
+    assert changed and all(k.startswith("style.") for k in changed)
+
+
+def test_adaptive_style_modulates_the_prediction():
+    _, _, model = trained("adaptive")
+    batch = make_batch(turners(0.2, 4, 0))
+    with torch.no_grad():
+        styled = model.point(batch)
+        for p in model.style.parameters():
+            p.zero_()
+        plain = model.point(batch)
+    assert not torch.allclose(styled, plain)
+
+
+def test_pecnet_endpoints_spread_with_sigma_and_paths_follow_them():
+    _, _, model = trained("pecnet")
+    batch = make_batch(turners(0.2, 4, 0))
+    torch.manual_seed(0)
+    spread = model.predict(batch, 20)[:, -1].std(0).mean()
+    model.options = type(model.options)(sigma=0.0)
+    torch.manual_seed(0)
+    assert model.predict(batch, 20)[:, -1].std(0).mean() < 1e-6 < spread
+    context = model.context(batch)
+    z = torch.zeros(1, len(context), model.options.latent)
+    moved = model.future(context, z + 3.0)
+    assert not torch.allclose(moved.sum(0), model.future(context, z).sum(0))
+
+
+@pytest.mark.parametrize("risk", ["irm", "vrex"])
+def test_invariant_penalty_is_zero_only_when_environments_agree(risk):
+    method = get_method("invariant")(ModelConfig(), {"risk": risk})
+    model = method.build_model()
+    windows = turners(0.2, 8, 0)
+    ctx = TaskContext(0, "t", windows, model, None, np.random.default_rng(0))
+    method.before_task(ctx)
+    ctx.batch = make_batch(windows)
+    ctx.loss, ctx.parts, ctx.output = model.loss(ctx.batch, 2)
+    method.before_backward(ctx)
+    assert ctx.parts["penalty"] > 0
+    assert len(method.risks(ctx, torch.ones(()))) == 2  # the two halves by motion scale
+    with pytest.raises(ValueError, match="risk"):
+        get_method("invariant")(ModelConfig(), {"risk": "dro"})
+
+
+def test_derpp_reservoir_keeps_its_size_and_outputs_as_stored():
+    method, result, model = trained("derpp", {"buffer": 10})
+    assert len(method.scenes) == 10 and method.seen == 2 * 2 * 8  # epochs x tasks x scenes
+    assert all(
+        o.shape == (12, len(s), 2) for s, o in zip(method.scenes, method.outputs, strict=True)
+    )
+    assert result.summaries[-1]["buffer_scenes"] == 10
+
+
+def test_lwf_holds_the_model_to_its_previous_predictions():
+    """After a second task turning the other way, the distilled model predicts the first task's
+    scenes closer to how it did after the first task than undistilled fine-tuning does."""
+    batch = make_batch(turners(0.3, 4, 0))
+    tasks = turning_tasks(turns=(0.3, -0.3))
+
+    def drift(options):
+        points = []
+
+        def keep(event, data):
+            if event == "task_end":
+                with torch.no_grad():
+                    points.append(data["model"].point(batch))
+
+        trained("lwf", options, tasks, [keep])
+        return (points[1] - points[0]).abs().mean()
+
+    assert drift({"strength": 10.0}) < drift({"strength": 0.0})
+
+
+def test_si_importance_grows_where_weights_reduced_the_loss():
+    method, _, _ = trained("si")
+    total = sum(v.sum() for v in method.importance.values())
+    assert total > 0 and all((v >= 0).all() for v in method.importance.values())
