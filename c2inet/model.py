@@ -20,6 +20,7 @@ from torch import nn
 from c2inet.backbones import BACKBONES
 from c2inet.batch import Batch, make_batch, variety_loss
 from c2inet.data import OBS_LEN, Windows
+from c2inet.options import require
 from c2inet.prior import (
     GaussianMixture,
     LearnablePrior,
@@ -60,8 +61,9 @@ class ModelConfig:
             raise ValueError(f"c_source {self.c_source!r}: expected prior or posterior")
         if self.c_per not in ("agent", "scene"):
             raise ValueError(f"c_per {self.c_per!r}: expected agent or scene")
-        if self.beta_x < 0:
-            raise ValueError(f"beta_x must be at least 0, got {self.beta_x}")
+        require(self, 1, "latent_dim", "z_dim", "c_dim", "n_mc")
+        require(self, 0, "beta_c", "beta_z", "beta_x")
+        require(self, 0, "likelihood_std", open_low=True)
 
 
 class LossOutput(NamedTuple):

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import torch
 
+from c2inet.options import require
+
 LOG_2PI = math.log(2 * math.pi)
 
 
@@ -122,11 +124,10 @@ class QueueConfig:
     target_samples: int = 1000
 
     def __post_init__(self):
-        for name in ("anchors", "anchor_batch"):
-            if getattr(self, name) < 1:
-                raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
-        if self.distill_weight < 0:
-            raise ValueError(f"distill_weight must be at least 0, got {self.distill_weight}")
+        require(self, 1, "capacity", "anchors", "anchor_batch", "fit_steps", "fit_samples")
+        require(self, 1, "target_samples")
+        require(self, 0, "distill_weight", "lambda_div")
+        require(self, 0, "fit_lr", high=10, open_low=True)
 
 
 class PriorQueue:

@@ -23,6 +23,7 @@ from c2inet.diagnostics import diagnose
 from c2inet.files import write_atomic
 from c2inet.methods.base import Method, TaskContext
 from c2inet.metrics import evaluate_predictions
+from c2inet.options import require
 
 VARIANT_METRICS = ("ade", "fde", "ade_k1", "fde_k1")
 
@@ -54,8 +55,9 @@ class TrainConfig:
     diagnostics: bool = True  # measure the confounder's diagnostics after each task
 
     def __post_init__(self):
-        if self.k_train < 1:
-            raise ValueError(f"k_train must be at least 1, got {self.k_train}")
+        require(self, 0, "epochs", "seed", "val_every")
+        require(self, 1, "batch_scenes", "k", "k_train", "eval_batch_scenes")
+        require(self, 0, "lr", high=10, open_low=True)
 
 
 @dataclass

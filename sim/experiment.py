@@ -45,6 +45,8 @@ from viz.recording import RunRecorder, default_blueprint
 
 DEFAULT_METHODS = ("c2inet-online", "finetune", "cv")
 APP_ID = "c2i-testbed"
+# options that have a flag of their own: a --set of them would be silently overridden
+FLAG_OPTIONS = (("train", "epochs"), ("train", "k"), ("train", "seed"), ("model", "backbone"))
 
 
 @dataclass(frozen=True)
@@ -91,6 +93,11 @@ class ExperimentConfig:
                 raise InputError(
                     f"--set: scope {scope!r} is not data, model, train or a chosen method"
                 )
+        for scope, key in FLAG_OPTIONS:
+            if key in self.settings.get(scope, {}):
+                raise InputError(f"--set {scope}.{key}: use --{key} (its flag) instead")
+        if self.seed < 0:
+            raise InputError(f"seed must be at least 0, got {self.seed}")
         for name, value, low in (
             ("seeds", self.seeds, 1),
             ("epochs", self.epochs, 0),
@@ -104,7 +111,7 @@ class ExperimentConfig:
             for name in self.methods:
                 self.method(name)
         except ValueError as error:
-            raise InputError(f"--set: {error}") from None
+            raise InputError(f"--set {error}") from None
 
     def specs(self) -> list[DomainSpec]:
         """The curriculum's domains, with the ``data`` settings applied to their knobs."""
@@ -112,13 +119,13 @@ class ExperimentConfig:
 
     def model_config(self) -> ModelConfig:
         return build_options(
-            ModelConfig, {"backbone": self.backbone, **self.settings.get("model", {})}
+            ModelConfig, {"backbone": self.backbone, **self.settings.get("model", {})}, "model"
         )
 
     def train_config(self, seed_index: int = 0) -> TrainConfig:
         """The trainer's options of the job with seed ``seed_index`` (its own seed)."""
         train = {**self.settings.get("train", {}), "epochs": self.epochs, "k": self.k}
-        return build_options(TrainConfig, {**train, "seed": self.seed + seed_index})
+        return build_options(TrainConfig, {**train, "seed": self.seed + seed_index}, "train")
 
     def method(self, name: str):
         return get_method(name)(self.model_config(), self.settings.get(name))

@@ -28,8 +28,8 @@ from pathlib import Path
 from typing import Any
 
 from c2inet.errors import InputError, did_you_mean
+from c2inet.options import build
 from sim.generators import get_generator
-from sim.options import build
 
 # the built-in families (and the real data they read) ship inside the package
 SCENARIOS_DIR = Path(str(resources.files("sim").joinpath("scenarios")))

@@ -20,11 +20,16 @@ from c2inet.batch import make_batch
 from c2inet.data import Windows
 from c2inet.methods.base import TaskContext
 from c2inet.methods.coresets import CoresetOptions, Coresets
+from c2inet.options import require
 
 
 @dataclass(frozen=True)
 class AGEMOptions(CoresetOptions):
     memory_batch: int = 16  # remembered scenes per reference gradient
+
+    def __post_init__(self):
+        super().__post_init__()
+        require(self, 1, "memory_batch")
 
 
 def gradient(parameters: list[torch.nn.Parameter]) -> torch.Tensor:

@@ -12,7 +12,6 @@ are found by :func:`discover`; :mod:`c2inet.checker` checks each against the con
 
 from __future__ import annotations
 
-import dataclasses
 import importlib
 import pkgutil
 from dataclasses import dataclass, field
@@ -25,6 +24,7 @@ from c2inet.batch import Batch
 from c2inet.data import Windows
 from c2inet.errors import did_you_mean
 from c2inet.model import ModelConfig, Predictor
+from c2inet.options import build
 
 METHODS: dict[str, type[Method]] = {}
 
@@ -57,24 +57,9 @@ class NoOptions:
     """Methods without options."""
 
 
-def build_options(cls: type, values: dict[str, Any]):
-    """``cls(**values)`` with every key checked and values converted to the field's type."""
-    fields = {f.name: f for f in dataclasses.fields(cls)}
-    out = {}
-    for key, value in values.items():
-        if key not in fields:
-            known = ", ".join(fields) or "none"
-            raise ValueError(
-                f"unknown option {key!r}{did_you_mean(key, fields)} (options: {known})"
-            )
-        kind = type(getattr(cls(), key))
-        if kind is bool and not isinstance(value, bool):
-            raise ValueError(f"option {key!r} must be true or false, got {value!r}")
-        try:
-            out[key] = kind(value)
-        except (TypeError, ValueError):
-            raise ValueError(f"option {key!r} must be {kind.__name__}, got {value!r}") from None
-    return cls(**out)
+def build_options(cls: type, values: dict[str, Any], where: str = "options"):
+    """``cls`` built from ``values`` by the project's one option builder (types and ranges)."""
+    return build(cls, values, where)
 
 
 class Method:
@@ -94,7 +79,7 @@ class Method:
 
     def __init__(self, model_config: ModelConfig, options: dict[str, Any] | None = None):
         self.model_config = model_config
-        self.options = build_options(self.Options, options or {})
+        self.options = build_options(self.Options, options or {}, self.name)
 
     def build_model(self) -> torch.nn.Module:
         return Predictor(self.model_config)

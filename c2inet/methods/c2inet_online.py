@@ -26,6 +26,7 @@ import torch
 from c2inet.batch import make_batch
 from c2inet.methods.base import Method, TaskContext
 from c2inet.model import Anchors, C2INetModel, make_anchors
+from c2inet.options import require
 from c2inet.prior import GaussianMixture, QueueConfig, mix, moment_match
 
 TARGET_COMPONENTS = 256
@@ -37,6 +38,10 @@ class C2INetOptions(QueueConfig):
 
     interval: int = 2  # |E|: epochs between new components (11 a task at 20 epochs: pruning runs)
     samples: int = 1000  # S: agents sampled for the initial prior and the targets
+
+    def __post_init__(self):
+        super().__post_init__()
+        require(self, 1, "interval", "samples")
 
 
 class C2INetOnline(Method):

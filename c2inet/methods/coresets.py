@@ -10,11 +10,15 @@ from typing import Any
 
 from c2inet.data import Windows
 from c2inet.methods.base import Method, TaskContext
+from c2inet.options import require
 
 
 @dataclass(frozen=True)
 class CoresetOptions:
     per_task: int = 30  # scenes kept from every finished task
+
+    def __post_init__(self):
+        require(self, 0, "per_task")
 
 
 class Coresets(Method):

@@ -20,6 +20,7 @@ import torch
 from c2inet.batch import make_batch
 from c2inet.data import Windows
 from c2inet.methods.base import Method, TaskContext
+from c2inet.options import require
 
 
 @dataclass(frozen=True)
@@ -28,6 +29,10 @@ class DERPPOptions:
     alpha: float = 0.3  # weight of the stored outputs' term
     beta: float = 0.5  # weight of the replayed scenes' task loss
     replay_batch: int = 16
+
+    def __post_init__(self):
+        require(self, 1, "buffer", "replay_batch")
+        require(self, 0, "alpha", "beta")
 
 
 class DERPP(Method):

@@ -13,6 +13,7 @@ import torch
 
 from c2inet.batch import batches
 from c2inet.methods.base import Method, TaskContext
+from c2inet.options import require
 
 
 @dataclass(frozen=True)
@@ -20,6 +21,11 @@ class EWCOptions:
     strength: float = 100.0  # lambda
     gamma: float = 1.0  # decay of the running Fisher (1: plain sum over tasks)
     fisher_batch_scenes: int = 16  # scenes per batch of the Fisher estimate
+
+    def __post_init__(self):
+        require(self, 0, "strength")
+        require(self, 0, "gamma", high=1)
+        require(self, 1, "fisher_batch_scenes")
 
 
 class EWC(Method):

@@ -17,12 +17,16 @@ import torch
 
 from c2inet.methods.base import Method
 from c2inet.model import C2INetModel
+from c2inet.options import require
 from c2inet.prior import LearnablePrior
 
 
 @dataclass(frozen=True)
 class GCRLOptions:
     components: int = 5  # GCRL's num_envs: Gaussians of the prior
+
+    def __post_init__(self):
+        require(self, 1, "components")
 
 
 class GCRL(Method):

@@ -22,7 +22,9 @@ import numpy as np
 import torch
 
 from c2inet.batch import Batch, make_batch
+from c2inet.errors import InputError
 from c2inet.methods.base import Method, TaskContext
+from c2inet.options import require
 
 RISKS = ("irm", "vrex")
 
@@ -35,9 +37,9 @@ class InvariantOptions:
 
     def __post_init__(self):
         if self.risk not in RISKS:
-            raise ValueError(f"risk {self.risk!r}: expected one of {', '.join(RISKS)}")
-        if self.environments < 2:
-            raise ValueError(f"environments must be at least 2, got {self.environments}")
+            raise InputError(f"risk {self.risk!r}: expected one of {', '.join(RISKS)}")
+        require(self, 0, "weight")
+        require(self, 2, "environments", high=100)
 
 
 def scene_scales(batch: Batch) -> torch.Tensor:

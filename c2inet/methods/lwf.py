@@ -16,11 +16,15 @@ from typing import Any
 import torch
 
 from c2inet.methods.base import Method, TaskContext
+from c2inet.options import require
 
 
 @dataclass(frozen=True)
 class LwFOptions:
     strength: float = 1.0  # weight of the distillation term
+
+    def __post_init__(self):
+        require(self, 0, "strength")
 
 
 class LwF(Method):

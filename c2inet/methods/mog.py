@@ -16,12 +16,16 @@ import torch
 
 from c2inet.methods.base import Method, TaskContext
 from c2inet.model import C2INetModel
+from c2inet.options import require
 from c2inet.prior import LearnablePrior
 
 
 @dataclass(frozen=True)
 class MoGOptions:
     per_task: int = 5  # learnable Gaussians added by every task
+
+    def __post_init__(self):
+        require(self, 1, "per_task")
 
 
 class MoG(Method):

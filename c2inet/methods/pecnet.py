@@ -21,6 +21,7 @@ from c2inet.batch import Batch, variety_loss
 from c2inet.data import PRED_LEN
 from c2inet.methods.base import Method
 from c2inet.model import GaussianHead, LossOutput, ModelConfig, Predictor, to_positions
+from c2inet.options import require
 from c2inet.prior import gaussian_sample, kl_standard_normal
 
 
@@ -29,6 +30,10 @@ class PECNetOptions:
     latent: int = 16  # size of z
     sigma: float = 1.3  # std of z at test time (PECNet's truncation trick)
     kl_weight: float = 1.0
+
+    def __post_init__(self):
+        require(self, 1, "latent")
+        require(self, 0, "sigma", "kl_weight")
 
 
 def mlp(inputs: int, outputs: int) -> nn.Sequential:

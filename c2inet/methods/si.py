@@ -17,12 +17,17 @@ from typing import Any
 import torch
 
 from c2inet.methods.base import Method, TaskContext
+from c2inet.options import require
 
 
 @dataclass(frozen=True)
 class SIOptions:
     strength: float = 1.0  # c
     damping: float = 0.1  # xi
+
+    def __post_init__(self):
+        require(self, 0, "strength")
+        require(self, 0, "damping", open_low=True)
 
 
 def weights(model: torch.nn.Module) -> dict[str, torch.Tensor]:

@@ -23,10 +23,10 @@ import pymunk.batch
 from numba import njit
 
 from c2inet.errors import InputError
+from c2inet.options import check_range
 from sim.data import SPLITS, Domain, Scene
 from sim.generators import Generator, child_seed
 from sim.generators.crowd_controller import Controller
-from sim.options import check_range
 from sim.stats import motion_stats, proximity_stats
 
 LAYOUTS = ("circle_crossing", "corridor", "crossing")

@@ -15,9 +15,9 @@ from typing import Any
 import numpy as np
 
 from c2inet.errors import InputError
+from c2inet.options import check_range
 from sim.data import SPLITS, Domain, Scene
 from sim.generators import Generator
-from sim.options import check_range
 from sim.stats import motion_stats, proximity_stats
 
 

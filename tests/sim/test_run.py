@@ -126,7 +126,7 @@ def test_seeds_give_mean_and_std(tmp_path):
         (["--scenario", "crowd_noise_1..0"], "reversed"),
         (
             ["--scenario", "crowd_noise_0.1", "--set", "c2inet-online.prunning=false"],
-            "unknown option",
+            "unknown key",
         ),
         (
             ["--scenario", "crowd_noise_0.1", "--set", "c2inet-online.pruning=maybe"],
@@ -140,16 +140,21 @@ def test_seeds_give_mean_and_std(tmp_path):
         (["--scenario", "crowd_noise_0.1", "--threads", "0"], "--threads: 0 is not between 1"),
         (["--scenario", "crowd_noise_0.1", "--set", "model.c_per=cell"], "expected agent or"),
         (["--scenario", "crowd_noise_0.1", "--set", "model.c_source=mean"], "expected prior or"),
-        (["--scenario", "crowd_noise_0.1", "--set", "train.k_train=0"], "k_train must be at least"),
-        (["--scenario", "crowd_noise_0.1", "--set", "model.beta_x=-1"], "beta_x must be at least"),
+        (["--scenario", "crowd_noise_0.1", "--set", "train.k_train=0"], "k_train=0 is out of"),
+        (["--scenario", "crowd_noise_0.1", "--set", "model.beta_x=-1"], "beta_x=-1 is out of"),
         (
             ["--scenario", "crowd_noise_0.1", "--set", "c2inet-online.anchor_batch=0"],
-            "anchor_batch must be at least 1",
+            "anchor_batch=0 is out of range [1",
         ),
         (
             ["--scenario", "crowd_noise_0.1", "--set", "c2inet-online.distill_weight=-1"],
-            "distill_weight must be at least 0",
+            "distill_weight=-1 is out of range [0",
         ),
+        (["--scenario", "crowd_noise_0.1", "--set", "train.lr=-1"], "lr=-1 is out of range (0"),
+        (["--scenario", "crowd_noise_0.1", "--set", "train.lr=nan"], "'lr' must be finite"),
+        (["--scenario", "crowd_noise_0.1", "--set", "model.n_mc=1.5"], "must be an integer"),
+        (["--scenario", "crowd_noise_0.1", "--set", "train.epochs=3"], "use --epochs"),
+        (["--scenario", "crowd_noise_0.1", "--seed", "-1"], "seed must be at least 0"),
     ],
 )
 def test_bad_options_give_one_error_line(args, message):

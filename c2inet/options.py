@@ -1,4 +1,8 @@
-"""Typed option dataclasses built from TOML or CLI mappings; unknown keys and bad types fail."""
+"""The one builder of typed option dataclasses, from TOML or command-line mappings: family knobs,
+``--set`` overrides, and the learner's model, train and method options all pass through
+:func:`build`, so no path is looser than another. Unknown keys and wrong types fail here (1.5 is
+no integer); each dataclass checks its own ranges in ``__post_init__`` with :func:`check_range`,
+so a configuration built in Python is held to the same ranges."""
 
 from __future__ import annotations
 
@@ -31,7 +35,10 @@ def _coerce(value: Any, kind: Any, where: str, key: str) -> Any:
             raise InputError(f"{where}: {key!r} must be true or false, got {value!r}")
         return value
     if kind is int:
-        if isinstance(value, bool) or not isinstance(value, int | float) or value != int(value):
+        whole = isinstance(value, int) or (
+            isinstance(value, float) and math.isfinite(value) and value.is_integer()
+        )
+        if isinstance(value, bool) or not whole:
             raise InputError(f"{where}: {key!r} must be an integer, got {value!r}")
         return int(value)
     if kind is float:
@@ -76,3 +83,9 @@ def check_range(name: str, value: float, low: float, high: float, *, open_low=Fa
     if not ok:
         bracket = "(" if open_low else "["
         raise InputError(f"{name}={value:g} is out of range {bracket}{low:g}, {high:g}]")
+
+
+def require(options: Any, low: float, *names: str, high: float = math.inf, open_low=False) -> None:
+    """:func:`check_range` for each named field of ``options``: ``low <= value <= high``."""
+    for name in names:
+        check_range(name, getattr(options, name), low, high, open_low=open_low)
