@@ -11,7 +11,7 @@ from c2inet.errors import InputError, did_you_mean
 from c2inet.methods.base import discover
 from sim.families import available_families, load_family
 from sim.generators import get_generator
-from viz.cli import bounded_int, plain_parser
+from viz.cli import bounded_float, bounded_int, plain_parser
 
 SCENARIO_HELP = """scenarios: FAMILY_VALUES, parts joined by '+'; VALUES is a..b (step from the
 decimals of a), a..b:step, or v1,v2,... (names for real-data families), e.g.
@@ -52,13 +52,27 @@ def parser(
 
 
 def add_workers(p: argparse.ArgumentParser) -> None:
-    """``--workers``: processes that generate episodes in parallel (same result for any count)."""
+    """``--workers``: processes that generate episodes in parallel (same result for any count);
+    ``--memory-budget``: the most memory one domain's generation may take."""
     p.add_argument(
         "--workers",
         type=bounded_int(1, 256),
         default=os.cpu_count() or 1,
         help="worker processes for episode generation (default: the number of cores)",
     )
+    p.add_argument(
+        "--memory-budget",
+        type=bounded_float(0.001, 1e6),
+        default=default_memory_budget(),
+        metavar="GB",
+        help="refuse a domain whose generation needs more (default: half of this machine's "
+        f"memory, {default_memory_budget():g})",
+    )
+
+
+def default_memory_budget() -> float:
+    """Half of this machine's memory, in GB."""
+    return round(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2e9, 1)
 
 
 def add_threads(p: argparse.ArgumentParser) -> None:

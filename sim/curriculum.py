@@ -49,13 +49,18 @@ class Curriculum:
 
 
 def make_tasks(
-    specs: list[DomainSpec], seed: int, quick: bool, cache: Path, workers: int
+    specs: list[DomainSpec],
+    seed: int,
+    quick: bool,
+    cache: Path,
+    workers: int,
+    memory_budget: float | None = None,
 ) -> tuple[list[Task], list]:
     """Domains of the curriculum as learner tasks (windows per split)."""
     tasks, domains = [], []
     for spec in tqdm(specs, desc="domains", unit="domain", file=sys.stderr, leave=False):
         quick_splits = Splits(*get_generator(spec.family.generator).quick_splits) if quick else None
-        domain = build_domain(spec, seed, cache, quick_splits, workers)
+        domain = build_domain(spec, seed, cache, quick_splits, workers, memory_budget)
         splits = {}
         for split in SPLITS:
             windows = domain.windows(split)

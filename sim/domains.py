@@ -52,10 +52,12 @@ def build_domain(
     cache_dir: Path | None = None,
     splits: Splits | None = None,
     workers: int = 1,
+    memory_budget: float | None = None,
 ) -> Domain:
     """Generate the domain of ``spec``, or read it from ``cache_dir`` when already made.
 
-    ``splits`` overrides the family's scene counts (e.g. tiny sizes for smoke runs).
+    ``splits`` overrides the family's scene counts (e.g. tiny sizes for smoke runs). A domain
+    whose generation would need more than ``memory_budget`` GB is refused before it starts.
     """
     splits = splits or spec.family.splits
     digest = domain_hash(spec, root_seed, splits)
@@ -66,6 +68,13 @@ def build_domain(
         except InputError as error:  # damaged or truncated: never used, made again
             print(f"warning: {error}; generating it again", file=sys.stderr)
     generator = get_generator(spec.family.generator)()
+    needed = generator.memory_bytes(spec.knobs(), splits) / 1e9
+    if memory_budget is not None and needed > memory_budget:
+        raise InputError(
+            f"domain {spec.name}: generating it needs about {needed:.3g} GB, more than the "
+            f"memory budget of {memory_budget:g} GB (--memory-budget; fewer agents, frames or "
+            "scenes)"
+        )
     domain = generator.generate(
         spec.name, spec.family.name, spec.knobs(), splits, domain_seed(root_seed, spec), workers
     )

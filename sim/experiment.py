@@ -29,7 +29,7 @@ from tqdm import tqdm
 
 from c2inet.backbones import BACKBONES
 from c2inet.errors import InputError, did_you_mean
-from c2inet.files import write_atomic, write_text_atomic
+from c2inet.files import writable_folder, write_atomic, write_text_atomic
 from c2inet.methods.base import build_options, get_method
 from c2inet.model import ModelConfig
 from c2inet.trainer import ContinualTrainer, Result, TrainConfig
@@ -39,6 +39,7 @@ from sim.estimate import describe, run_seconds
 from sim.outputs import TRUTH_PART, claim, output_folder, write_outputs
 from sim.scenario import DomainSpec, parse_scenario
 from viz.colours import method_colour
+from viz.live import check_reachable, viewer_url
 from viz.loggers import LOGGERS, make_loggers
 from viz.observer import RecordingObserver, log_truth
 from viz.recording import RunRecorder, default_blueprint
@@ -154,6 +155,7 @@ class Execution:
     cache: Path = Path(".cache/domains")
     rerun: str | None = None
     loggers: tuple[str, ...] = ()  # csv, tensorboard: per job, beside its checkpoints
+    memory_budget: float | None = None  # GB one domain's generation may take (None: no limit)
 
     def __post_init__(self):
         object.__setattr__(self, "loggers", tuple(self.loggers))
@@ -164,12 +166,14 @@ class Execution:
                 raise InputError(f"--logger {name!r}: unknown{hint} (known: {', '.join(LOGGERS)})")
         if self.backend not in BACKENDS:
             raise InputError(f"--backend {self.backend!r}: expected one of {', '.join(BACKENDS)}")
-        if (
-            self.rerun is not None
-            and self.rerun != "spawn"
-            and not self.rerun.startswith("connect")
-        ):
-            raise InputError(f"--rerun {self.rerun!r}: expected spawn, connect or connect=URL")
+        if self.rerun is not None and self.rerun != "spawn":
+            if self.rerun != "connect" and not self.rerun.startswith("connect="):
+                raise InputError(
+                    f"--rerun {self.rerun[:80]!r}: expected spawn, connect or connect=URL"
+                )
+            viewer_url(self.rerun)
+        if self.cache.exists() and not self.cache.is_dir():
+            raise InputError(f"--cache {self.cache}: not a folder")
         if self.ray_address is not None and self.backend != "ray":
             raise InputError("--ray-address: only with --backend ray")
 
@@ -225,8 +229,14 @@ def parse_value(text: str) -> bool | int | float | str:
 def prepare(config: ExperimentConfig, execution: Execution) -> Curriculum:
     """Generate (or read from the content-hashed cache) every domain of the curriculum."""
     specs = config.specs()
+    writable_folder(execution.cache, "--cache")
     tasks, domains = make_tasks(
-        specs, config.seed, config.quick, execution.cache, execution.workers
+        specs,
+        config.seed,
+        config.quick,
+        execution.cache,
+        execution.workers,
+        execution.memory_budget,
     )
     drawn = config.record or execution.rerun is not None
     showcases, rollouts = make_showcases(specs, tasks, config.seed) if drawn else ([], {})
@@ -390,6 +400,8 @@ def run_experiment(
     their last task; the configuration must equal the folder's. Returns ``metrics.json``.
     """
     execution = execution or Execution()
+    if execution.rerun not in (None, "spawn"):
+        check_reachable(viewer_url(execution.rerun))
     out = output_folder(config.scenario, out, resume)
     claim(out, config, execution, resume, overwrite)
     torch.set_num_threads(execution.threads)

@@ -107,23 +107,30 @@ def available_families(extra_dirs: list[Path]) -> dict[str, Path]:
     return found
 
 
+MAX_FAMILY_BYTES = 1_000_000
 _FAMILY_KEYS = {"description", "generator", "knob", "seed_offset", "knobs", "splits", "values"}
 
 
 def load_family(path: Path) -> Family:
     """Read and check one family TOML file; every unknown key is an error."""
+    if not path.is_file():  # a FIFO or a device named *.toml would block or never end
+        raise InputError(f"{path}: a family file must be a regular file")
+    if path.stat().st_size > MAX_FAMILY_BYTES:
+        raise InputError(f"{path}: larger than {MAX_FAMILY_BYTES // 1000} kB; no family is")
     try:
         raw = tomllib.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as error:
         raise InputError(f"{path}: cannot read family file: {error}") from None
+    except RecursionError:
+        raise InputError(f"{path}: cannot read family file: nested too deeply") from None
     unknown = sorted(set(raw) - _FAMILY_KEYS)
     if unknown:
         raise InputError(
             f"{path}: unknown key {unknown[0]!r}{did_you_mean(unknown[0], _FAMILY_KEYS)} "
             f"(allowed: {', '.join(sorted(_FAMILY_KEYS))})"
         )
-    if "generator" not in raw:
-        raise InputError(f"{path}: missing key 'generator'")
+    if not isinstance(raw.get("generator"), str):
+        raise InputError(f"{path}: 'generator' must be the name of a generator, e.g. \"crowd\"")
     generator = get_generator(raw["generator"], where=str(path))
     knob_names = {f.name for f in dataclasses.fields(generator.Knobs)}
     defaults = raw.get("knobs", {})

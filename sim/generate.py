@@ -12,7 +12,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from c2inet.files import write_text_atomic
+from c2inet.files import writable_folder, write_text_atomic
 from sim.cli import add_workers, parse, parser
 from sim.data import SPLITS, Domain
 from sim.domains import build_domain
@@ -79,9 +79,12 @@ def main(argv: list[str] | None = None) -> int:
     if args.out is None:
         p.error("the following arguments are required: --out")
     curriculum = parse_scenario(args.scenario, args.scenarios_dir)
+    writable_folder(args.out, "--out")
     domains = []
     for spec in tqdm(curriculum, desc="domains", unit="domain", file=sys.stderr):
-        domain = build_domain(spec, args.seed, workers=args.workers)
+        domain = build_domain(
+            spec, args.seed, workers=args.workers, memory_budget=args.memory_budget
+        )
         WRITERS[args.format](domain, args.out)
         domains.append(domain)
     summary = {

@@ -101,6 +101,7 @@ def execution_of(args) -> Execution:
         ray_address=args.ray_address,
         threads=args.threads,
         workers=args.workers,
+        memory_budget=args.memory_budget,
         cache=args.cache,
         rerun=getattr(args, "rerun", None),
         loggers=tuple(n.strip() for n in args.logger.split(",") if n.strip()),

@@ -13,10 +13,11 @@ from decimal import Decimal, InvalidOperation
 from pathlib import Path
 from typing import Any
 
-from c2inet.errors import InputError, did_you_mean
+from c2inet.errors import InputError, did_you_mean, quote
 from sim.families import Family, available_families, load_family
 
 MAX_DOMAINS = 64
+MAX_LABEL = 32  # characters of a value as written in a domain name
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)"
 _RANGE = re.compile(rf"^({_NUMBER})\.\.({_NUMBER})(?::({_NUMBER}))?$")
 _NAME = re.compile(r"^[a-z0-9][a-z0-9_-]*$")
@@ -47,9 +48,9 @@ def _number(text: str, part: str) -> Decimal:
     try:
         value = Decimal(text)
     except InvalidOperation:
-        raise InputError(f"scenario part {part!r}: {text!r} is not a number") from None
+        raise InputError(f"scenario part {quote(part)}: {text!r} is not a number") from None
     if not value.is_finite():
-        raise InputError(f"scenario part {part!r}: {text!r} is not a finite number")
+        raise InputError(f"scenario part {quote(part)}: {text!r} is not a finite number")
     return value
 
 
@@ -60,25 +61,25 @@ def _numeric_values(values: str, part: str) -> list[tuple[float, str]]:
         start, stop = _number(start_text, part), _number(stop_text, part)
         step = _number(step_text, part) if step_text else Decimal(1).scaleb(-_decimals(start_text))
         if step <= 0:
-            raise InputError(f"scenario part {part!r}: the step {step} must be positive")
+            raise InputError(f"scenario part {quote(part)}: the step {step} must be positive")
         if stop < start:
-            raise InputError(f"scenario part {part!r}: the range {start}..{stop} is reversed")
+            raise InputError(f"scenario part {quote(part)}: the range {start}..{stop} is reversed")
+        if (stop - start) / step >= MAX_DOMAINS:  # compared as decimals: the count may be huge
+            raise InputError(f"scenario part {quote(part)}: more than {MAX_DOMAINS} domains")
         count = int((stop - start) / step) + 1
-        if count > MAX_DOMAINS:
-            raise InputError(f"scenario part {part!r}: {count} domains, more than {MAX_DOMAINS}")
         places = max(_decimals(start_text), _decimals(step_text or start_text))
         items = [start + i * step for i in range(count)]
         return [(float(v), f"{v:.{places}f}") for v in items]
     items = values.split(",")
     if any(not item for item in items):
-        raise InputError(f"scenario part {part!r}: empty value in {values!r}")
+        raise InputError(f"scenario part {quote(part)}: empty value in {values!r}")
     out = []
     for item in items:
         if not re.fullmatch(_NUMBER, item):
             hint = ""
             if re.fullmatch(rf"{_NUMBER}-{_NUMBER}", item):
                 hint = f" (a range is written {item.replace('-', '..', 1)})"
-            raise InputError(f"scenario part {part!r}: {item!r} is not a number{hint}")
+            raise InputError(f"scenario part {quote(part)}: {item!r} is not a number{hint}")
         out.append((float(_number(item, part)), item))
     return out
 
@@ -90,12 +91,12 @@ def _split_family(part: str, families: dict[str, Path]) -> tuple[str, str]:
             return name, part[len(name) + 1 :]
     if part.rstrip("_") in families:
         raise InputError(
-            f"scenario part {part!r}: family {part.rstrip('_')!r} needs values, "
+            f"scenario part {quote(part)}: family {part.rstrip('_')!r} needs values, "
             f"e.g. {part.rstrip('_')}_0.1..0.3 (python -m sim.run --list knobs FAMILY)"
         )
     guess = part.rsplit("_", 1)[0] if "_" in part else part
     raise InputError(
-        f"scenario part {part!r}: unknown family{did_you_mean(guess, families)} "
+        f"scenario part {quote(part)}: unknown family{did_you_mean(guess, families)} "
         f"(known families: {', '.join(sorted(families)) or 'none'})"
     )
 
@@ -134,7 +135,7 @@ def parse_scenario(
     curriculum: list[DomainSpec] = []
     for part in (p.strip() for p in scenario.strip().split("+")):
         if not part:
-            raise InputError(f"scenario {scenario!r}: empty part between '+' signs")
+            raise InputError(f"scenario {quote(scenario)}: empty part between '+' signs")
         name, values = _split_family(part, families)
         family = with_overrides(load_family(families[name]), overrides or {})
         if family.value_names:
@@ -143,21 +144,26 @@ def parse_scenario(
                 if label not in family.value_names:
                     known = ",".join(family.value_names)
                     raise InputError(
-                        f"scenario part {part!r}: {label!r} is not a value of family "
+                        f"scenario part {quote(part)}: {quote(label)} is not a value of family "
                         f"{name!r} (known: {known})"
                     )
             specs = [DomainSpec(family, label, label) for label in labels]
         else:
             specs = [DomainSpec(family, v, label) for v, label in _numeric_values(values, part)]
         for spec in specs:
+            if len(spec.label) > MAX_LABEL:  # the label names files: keep it short
+                raise InputError(
+                    f"scenario part {quote(part)}: value {quote(spec.label, 20)} is longer than "
+                    f"{MAX_LABEL} characters"
+                )
             spec.knobs()  # validates the knob value against the generator's range
             if not _NAME.match(spec.label.replace(".", "")):
-                raise InputError(f"scenario part {part!r}: bad value {spec.label!r}")
+                raise InputError(f"scenario part {quote(part)}: bad value {spec.label!r}")
         curriculum.extend(specs)
     names = [spec.name for spec in curriculum]
     duplicates = sorted({n for n in names if names.count(n) > 1})
     if duplicates:
-        raise InputError(f"scenario {scenario!r}: domain {duplicates[0]!r} appears twice")
+        raise InputError(f"scenario {quote(scenario)}: domain {duplicates[0]!r} appears twice")
     if len(curriculum) > MAX_DOMAINS:
-        raise InputError(f"scenario {scenario!r}: more than {MAX_DOMAINS} domains")
+        raise InputError(f"scenario {quote(scenario)}: more than {MAX_DOMAINS} domains")
     return curriculum

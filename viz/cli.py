@@ -39,6 +39,21 @@ def bounded_int(low: int, high: int) -> Callable[[str], int]:
     return convert
 
 
+def bounded_float(low: float, high: float) -> Callable[[str], float]:
+    """An argparse ``type``: a number in [low, high] (NaN is in no range), else a usage error."""
+
+    def convert(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"{text} is not between {low:g} and {high:g}")
+        return value
+
+    return convert
+
+
 def guarded(main: Callable[[list[str] | None], int]) -> Callable[[list[str] | None], int]:
     """Run ``main``; bad input becomes one ``error:`` line on stderr and exit code 2."""
 

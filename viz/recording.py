@@ -27,6 +27,7 @@ import rerun.blueprint as rrb
 from c2inet.errors import InputError
 from c2inet.files import write_atomic
 from viz.colours import FUTURE, OBSERVED, legend_markdown
+from viz.live import spawn_viewer, viewer_url
 from viz.loggers import diagnostic_scalars
 
 Colour = tuple[int, int, int]
@@ -118,12 +119,10 @@ class RunRecorder:
         if path is not None:
             path.parent.mkdir(parents=True, exist_ok=True)
             sinks.append(rr.FileSink(str(path)))
-        if target == "spawn":  # start a viewer, then stream to it beside the file
-            stream.spawn(connect=False)
-            target = "connect"
-        if target is not None and target.startswith("connect"):
-            url = target.partition("=")[2] or "rerun+http://127.0.0.1:9876/proxy"
-            sinks.append(rr.GrpcSink(url))
+        if target == "spawn":  # start a viewer on 127.0.0.1, then stream to it beside the file
+            target = f"connect={spawn_viewer()}"
+        if target is not None:
+            sinks.append(rr.GrpcSink(viewer_url(target)))
         if sinks:
             stream.set_sinks(*sinks, default_blueprint=blueprint)
         return cls(stream)

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from c2inet.errors import InputError
+from c2inet.files import write_atomic
 from viz.cli import guarded, plain_parser
 from viz.serve import command, free_port, launch, stop, wait_for_port
 
@@ -54,6 +55,7 @@ def screenshot(
         raise RuntimeError("no chromium on PATH (Debian: apt-get install chromium)")
     web, grpc = free_port(), free_port()
     with tempfile.TemporaryDirectory() as tmp:
+        shot = Path(tmp) / "viewer.png"  # out is written only once a drawn viewer is in it
         env = dict(os.environ)  # the user's own Rerun configuration
         server = launch(
             command(recording, web, grpc), env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
@@ -61,7 +63,6 @@ def screenshot(
         try:
             wait_for_port(web)
             url = f"http://127.0.0.1:{web}/?url=rerun%2Bhttp://127.0.0.1:{grpc}/proxy"
-            out.parent.mkdir(parents=True, exist_ok=True)
             for attempt in range(1, attempts + 1):  # a loaded machine may still show the loader
                 subprocess.run(
                     [
@@ -70,7 +71,7 @@ def screenshot(
                         f"--user-data-dir={tmp}/chromium",
                         f"--window-size={size}",
                         f"--virtual-time-budget={budget_ms * attempt}",
-                        f"--screenshot={out.resolve()}",
+                        f"--screenshot={shot}",
                         url,
                     ],
                     env=env,
@@ -79,14 +80,13 @@ def screenshot(
                     timeout=300,
                     check=True,
                 )
-                if out.exists() and rendered(out):
-                    break
+                if shot.exists() and rendered(shot):
+                    write_atomic(out, lambda path: shutil.copyfile(shot, path))
+                    return out
                 time.sleep(2)  # let the viewer server settle before the next try
         finally:
             stop(server)
-    if not out.exists() or not rendered(out):
-        raise RuntimeError(f"the viewer did not render within {attempts} attempts")
-    return out
+    raise RuntimeError(f"the viewer did not render within {attempts} attempts; {out} not written")
 
 
 @guarded

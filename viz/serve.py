@@ -60,10 +60,14 @@ def stop(process: subprocess.Popen, timeout: float = 10.0) -> None:
             return
 
 
+def rerun_command() -> list[str]:
+    """The installed rerun-sdk's ``rerun`` command."""
+    return [shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))]
+
+
 def command(path: Path, web_port: int, grpc_port: int) -> list[str]:
-    rerun = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
     return [
-        rerun,
+        *rerun_command(),
         "--bind",
         "127.0.0.1",
         "--web-viewer",

@@ -42,6 +42,12 @@ class Generator:
         """What besides knobs, seed and sizes determines the output (e.g. input file hashes)."""
         return {}
 
+    @classmethod
+    def memory_bytes(cls, knobs: dict[str, Any], splits: Any) -> int:
+        """About the peak memory of generating a domain, checked against the memory budget
+        before anything runs (0: small whatever the knobs)."""
+        return 0
+
     def rollout(self, knobs: dict[str, Any], seed: np.random.SeedSequence, frames: int):
         """One longer episode of the domain (a :class:`sim.data.Scene`) for playback, or None."""
         return None

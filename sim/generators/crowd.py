@@ -271,6 +271,13 @@ class CrowdGenerator(Generator):
         (positions,) = simulate(options, [seed])
         return Scene(positions, np.arange(options.num_agents, dtype=np.int64))
 
+    @classmethod
+    def memory_bytes(cls, knobs: dict[str, Any], splits) -> int:
+        """Positions of every scene, float64, about four times over (windows, Parquet, stats)."""
+        options = CrowdKnobs(**knobs)
+        scenes = sum(getattr(splits, split) for split in SPLITS)
+        return 4 * scenes * options.frames * options.num_agents * 2 * 8
+
     def generate(self, name, family, knobs: dict[str, Any], splits, seed, workers=1) -> Domain:
         options = CrowdKnobs(**knobs)
         scenes: dict[str, list[Scene]] = {}

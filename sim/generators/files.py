@@ -14,11 +14,13 @@ from typing import Any
 
 import numpy as np
 
-from c2inet.errors import InputError
+from c2inet.errors import InputError, quote
 from c2inet.options import check_range
 from sim.data import SPLITS, Domain, Scene
 from sim.generators import Generator
 from sim.stats import motion_stats, proximity_stats
+
+MAX_COORDINATE = 1e6  # metres: beyond it a coordinate is a unit error, and statistics overflow
 
 
 @dataclass(frozen=True)
@@ -47,16 +49,19 @@ def read_trajectory_file(path: Path) -> Scene:
         fields = line.split()
         if not fields:
             continue
+        where = f"{path}:{number}"
         if len(fields) != 4:
-            raise InputError(
-                f"{path}:{number}: expected 4 columns (frame agent x y), got {len(fields)}"
-            )
+            raise InputError(f"{where}: expected 4 columns (frame agent x y), got {len(fields)}")
         try:
             values = [float(f) for f in fields]
         except ValueError:
-            raise InputError(f"{path}:{number}: non-numeric value in {line.strip()!r}") from None
+            raise InputError(f"{where}: non-numeric value in {quote(line.strip())}") from None
         if not all(np.isfinite(values)):
-            raise InputError(f"{path}:{number}: non-finite value in {line.strip()!r}")
+            raise InputError(f"{where}: non-finite value in {quote(line.strip())}")
+        if max(abs(values[2]), abs(values[3])) > MAX_COORDINATE:
+            raise InputError(f"{where}: coordinate beyond {MAX_COORDINATE:g} m")
+        if not values[1].is_integer() or abs(values[1]) > 2**53:
+            raise InputError(f"{where}: agent id {quote(fields[1], 20)} is not a whole number")
         rows.append([*values, number])
     if not rows:
         raise InputError(f"{path}: no trajectory rows")
@@ -101,6 +106,9 @@ class FilesGenerator(Generator):
                 matches = sorted(Path(full).parent.glob(Path(full).name))
                 if not matches:
                     raise InputError(f"{split} pattern {pattern!r}: no file matches {full}")
+                for match in matches:  # a folder, a device or a FIFO would hang or never end
+                    if not match.is_file():
+                        raise InputError(f"{split} pattern {pattern!r}: {match} is no regular file")
                 paths.extend(str(m.resolve()) for m in matches)
             out[split] = paths
         return out
