@@ -26,3 +26,9 @@ def quote(text: str, limit: int = 60) -> str:
     """``repr`` of ``text``, cut to its first ``limit`` characters: error messages quote what a
     user wrote (a scenario, a line of a data file) without repeating all of it."""
     return repr(text) if len(text) <= limit else f"{text[:limit]!r}... ({len(text)} characters)"
+
+
+def one_line(text: str) -> str:
+    """``text`` with every unprintable character (a newline, a control code) escaped, so an
+    error message stays one line whatever the input it quotes."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)

@@ -111,6 +111,14 @@ MAX_FAMILY_BYTES = 1_000_000
 _FAMILY_KEYS = {"description", "generator", "knob", "seed_offset", "knobs", "splits", "values"}
 
 
+def toml_table(raw: dict, key: str, path: Path) -> dict:
+    """``raw[key]`` when it is a TOML table (empty when absent), else an InputError."""
+    value = raw.get(key, {})
+    if not isinstance(value, dict):
+        raise InputError(f"{path}: {key!r} must be a table")
+    return value
+
+
 def load_family(path: Path) -> Family:
     """Read and check one family TOML file; every unknown key is an error."""
     if not path.is_file():  # a FIFO or a device named *.toml would block or never end
@@ -140,7 +148,7 @@ def load_family(path: Path) -> Family:
         raise InputError(f"{path}: 'knobs' and 'values' must be tables")
     if (knob is None) == (not values):
         raise InputError(f"{path}: give either 'knob' (numeric values) or [values.NAME] tables")
-    if knob is not None and knob not in knob_names:
+    if knob is not None and (not isinstance(knob, str) or knob not in knob_names):
         raise InputError(f"{path}: knob {knob!r} is not a knob of generator {raw['generator']!r}")
     for name, table in values.items():
         if not re.fullmatch(r"[a-z0-9][a-z0-9_-]*", name) or not isinstance(table, dict):
@@ -156,7 +164,7 @@ def load_family(path: Path) -> Family:
         knob=knob,
         seed_offset=seed_offset,
         defaults=defaults,
-        splits=build(Splits, raw.get("splits", {}), f"{path} [splits]"),
+        splits=build(Splits, toml_table(raw, "splits", path), f"{path} [splits]"),
         values=values,
     )
     if not values:  # the defaults alone must already be a valid knob set

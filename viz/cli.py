@@ -10,7 +10,7 @@ import argparse
 import sys
 from collections.abc import Callable
 
-from c2inet.errors import InputError
+from c2inet.errors import InputError, one_line
 
 
 class _Parser(argparse.ArgumentParser):
@@ -61,7 +61,7 @@ def guarded(main: Callable[[list[str] | None], int]) -> Callable[[list[str] | No
         try:
             return main(argv)
         except InputError as error:
-            print(f"error: {error}", file=sys.stderr)
+            print(f"error: {one_line(str(error))}", file=sys.stderr)
             return 2
 
     return run

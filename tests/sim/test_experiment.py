@@ -165,3 +165,15 @@ def test_the_experiment_is_a_function(tmp_path):
 def test_bad_configurations_are_refused_on_construction(options, message):
     with pytest.raises(InputError, match=message):
         ExperimentConfig(**{"scenario": "crowd_noise_0.1", **options})
+
+
+def test_the_cache_must_be_a_writable_folder(tmp_path):
+    from c2inet.files import writable_folder
+
+    file = tmp_path / "file"
+    file.write_text("")
+    with pytest.raises(InputError, match="--cache .*: not a folder"):
+        Execution(cache=file)
+    with pytest.raises(InputError, match="cannot create it"):
+        writable_folder(file / "sub", "--cache")
+    assert writable_folder(tmp_path / "a" / "b", "--cache").is_dir()

@@ -1,6 +1,7 @@
 """Real data through the files generator: parsing, validation errors, the vendored ETH-UCY."""
 
 import hashlib
+import os
 
 import numpy as np
 import pytest
@@ -40,6 +41,12 @@ def test_reads_tabs_spaces_crlf_and_float_frames(tmp_path):
         ("10 1 0 0\n20 1 0 0\n40 1 0 0\n", ":3: agent 1 breaks its uniform frame step"),
         ("10 1 0 0\n10 1 1 1\n", "breaks its uniform frame step"),
         ("", "no trajectory rows"),
+        ("10 1 1e308 0\n20 1 0 0\n", ":1: coordinate beyond 1e\\+06 m"),
+        ("10 1.5 0 0\n10 1.7 1 1\n", ":1: agent id '1.5' is not a whole number"),
+        (
+            "10 1 0 0\n20 1 x" + "y" * 500 + " 0\n",
+            r":2: non-numeric value in .*\(5\d\d characters\)",
+        ),
     ],
 )
 def test_broken_files_name_the_file_and_line(tmp_path, text, message):
@@ -64,3 +71,19 @@ def test_eth_ucy_tasks_train_on_train_files_and_test_on_val_files():
     # biwi_eth: train frames end before val frames start, so no window is in both
     assert domain.scenes["train"][0].num_frames > domain.scenes["test"][0].num_frames
     assert 0.5 < domain.stats["mean_speed"] < 4.0  # the known fast ETH time base, in m/s
+
+
+@pytest.mark.parametrize("kind", ["folder", "fifo", "device"])
+def test_file_patterns_match_regular_files_only(tmp_path, kind):
+    """A folder cannot be read, a FIFO blocks forever, /dev/zero never ends."""
+    target = {"folder": tmp_path / "scene.txt", "fifo": tmp_path / "scene.txt"}.get(kind)
+    if kind == "folder":
+        target.mkdir()
+    elif kind == "fifo":
+        os.mkfifo(target)
+    pattern = str(target) if target else "/dev/zero"
+    (tmp_path / "mine.toml").write_text(
+        f'generator = "files"\n[values.a]\ntrain = ["{pattern}"]\ntest = ["{pattern}"]\n'
+    )
+    with pytest.raises(InputError, match="no regular file"):
+        build_domain(parse_scenario("mine_a", [tmp_path])[0], 0)

@@ -5,6 +5,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from c2inet.errors import InputError
 from sim.data import SPLITS, Domain
 from sim.families import SCENARIOS_DIR, Splits, available_families, load_family
 from sim.generators import GENERATORS, Generator, get_generator
@@ -56,3 +57,13 @@ def test_shipped_families_live_in_the_scenarios_folder():
         "highway_noise",
         "merge_density",
     } <= names
+
+
+def test_a_domain_over_the_memory_budget_is_refused_before_generating(tmp_path):
+    from sim.domains import build_domain
+    from sim.scenario import parse_scenario
+
+    spec = parse_scenario("crowd_noise_0.1", overrides={"agents": 40, "frames": 100_000})[0]
+    with pytest.raises(InputError, match=r"needs about 1\d\d GB, more than the memory budget"):
+        build_domain(spec, 0, tmp_path, memory_budget=12.0)
+    assert not list(tmp_path.iterdir())

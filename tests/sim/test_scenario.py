@@ -1,6 +1,7 @@
 """The scenario language: ranges, lists, joins, and one clear error for every bad input."""
 
 import contextlib
+import os
 from pathlib import Path
 
 import pytest
@@ -91,11 +92,20 @@ def test_data_overrides_change_knobs_and_split_sizes():
         ("eth_ucy_paris", "not a value"),
         ("", "empty"),
         ("crowd_noise_0.001..10", "more than"),
+        ("crowd_noise_0..1:0." + "0" * 5000 + "1", "more than 64 domains"),  # 5000-digit count
+        ("crowd_noise_0." + "0" * 300 + "1", "longer than 32 characters"),  # a file name
+        ("crowd_noise_1e400", "not a number"),
     ],
 )
 def test_bad_scenarios_raise_one_clear_error(scenario, message):
-    with pytest.raises(InputError, match=message):
+    with pytest.raises(InputError, match=message) as error:
         parse_scenario(scenario)
+    assert len(str(error.value)) < 300  # the input is quoted by a short prefix
+
+
+def test_an_error_quotes_a_long_input_by_its_prefix():
+    with pytest.raises(InputError, match=r"\.\.\. \(5007 characters\)"):
+        parse_scenario("crowd_noise_" + "x" * 4995)
 
 
 @pytest.mark.parametrize(
@@ -109,6 +119,11 @@ def test_bad_scenarios_raise_one_clear_error(scenario, message):
         ('generator = "crowd"\nknob = "noise"\n[knobs]\nagents = "many"\n', "must be an integer"),
         ('generator = "crowd"\nknob = "noise"\n[knobs]\nlayout = "maze"\n', "layout"),
         ("generator = [", "cannot read"),
+        ("generator = 5\nknob = 'noise'\n", "'generator' must be the name"),
+        ('generator = "crowd"\nknob = [1]\n', "not a knob"),
+        ('generator = "crowd"\nknob = "noise"\nsplits = 3\n', "'splits' must be a table"),
+        ('generator = "crowd"\nknob = "noise"\n[knobs]\nagents = 1e400\n', "must be an integer"),
+        ('generator = "crowd"\nx = ' + "[" * 500 + "]" * 500, "nested too deeply"),
     ],
 )
 def test_bad_family_files_are_rejected(tmp_path, toml, message):
@@ -132,3 +147,9 @@ def test_parser_returns_a_curriculum_or_raises_its_own_error(text):
 def test_parser_survives_arbitrary_unicode(text):
     with contextlib.suppress(InputError):
         parse_scenario(text)
+
+
+def test_a_family_file_must_be_a_regular_file(tmp_path):
+    os.mkfifo(tmp_path / "piped.toml")  # reading it would block forever
+    with pytest.raises(InputError, match="regular file"):
+        parse_scenario("piped_0.1", [tmp_path])
