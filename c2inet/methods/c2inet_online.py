@@ -87,10 +87,14 @@ class C2INetOnline(Method):
         t = ctx.index + 1
         return current if t == 1 else mix([self.old, current], [(t - 1) / t, 1 / t])
 
-    def before_task(self, ctx: TaskContext) -> None:
+    def _sample(self, ctx: TaskContext) -> None:
+        """Draw the scenes holding the task's S sampled agents."""
         agents_per_scene = max(1.0, ctx.train.agents_per_scene.mean())
         scenes = min(len(ctx.train), int(self.options.samples / agents_per_scene) + 1)
         self.sample_scenes = ctx.rng.choice(len(ctx.train), scenes, replace=False)
+
+    def before_task(self, ctx: TaskContext) -> None:
+        self._sample(ctx)
         queue = ctx.model.queue
         self.old = queue.mixture.detached()
         posteriors = self._current_posterior(ctx)
