@@ -86,13 +86,15 @@ def add_threads(p: argparse.ArgumentParser) -> None:
     )
 
 
-def parse(p: argparse.ArgumentParser, argv: list[str]) -> argparse.Namespace | None:
+def parse(
+    p: argparse.ArgumentParser, argv: list[str], scenario_required: bool = True
+) -> argparse.Namespace | None:
     """Parse ``argv``; for ``--list``, print the listing and return None."""
     args = p.parse_args(argv)
     if args.list:
         print(listing(args.list, args.scenarios_dir))
         return None
-    if not args.scenario:
+    if scenario_required and not args.scenario:
         p.error("the following arguments are required: --scenario")
     return args
 

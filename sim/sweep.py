@@ -51,9 +51,13 @@ class SweepConfig:
     base: ExperimentConfig
     scenarios: tuple[str, ...]
     grid: dict[str, tuple[Any, ...]] = field(default_factory=dict)  # "SCOPE.KEY" -> values
+    variants: tuple[tuple[str, dict[str, dict[str, Any]]], ...] = ()  # named settings instead
 
     def settings(self) -> list[tuple[str, dict[str, dict[str, Any]]]]:
-        """Every combination of the grid's values: (label, settings by scope)."""
+        """The named variants, or every combination of the grid's values: (label, settings by
+        scope)."""
+        if self.variants:
+            return list(self.variants)
         keys = sorted(self.grid)
         out = []
         for values in itertools.product(*(self.grid[k] for k in keys)):
@@ -74,6 +78,7 @@ class SweepConfig:
             "base": self.base.to_json(),
             "scenarios": list(self.scenarios),
             "grid": {k: list(v) for k, v in self.grid.items()},
+            "variants": {label: settings for label, settings in self.variants},
         }
 
 
