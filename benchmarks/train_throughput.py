@@ -7,7 +7,7 @@ C2INet's target is at most 1.5x. Each method's figure is the best of ``--repeats
 methods interleaved within each round.
 
     python benchmarks/train_throughput.py [--scenario crowd_noise_0.1,0.2] [--epochs 10]
-        [--repeats 3] [--threads 1]
+        [--repeats 3] [--threads 1] [--methods all]
 
 Run it on 2-agent scenes too (``--scenario crowd_radius_0.1,0.2``), where fixed costs weigh more.
 """
@@ -19,7 +19,7 @@ import time
 
 import torch
 
-from c2inet.methods.base import get_method
+from c2inet.methods.base import discover, get_method
 from c2inet.model import ModelConfig
 from c2inet.trainer import ContinualTrainer, Task, TrainConfig
 from sim.domains import build_domain
@@ -50,7 +50,7 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--scenario", default="crowd_noise_0.1,0.2")
     p.add_argument("--epochs", type=int, default=10)
-    p.add_argument("--methods", default="finetune,c2inet-online,ewc,coresets,joint")
+    p.add_argument("--methods", default="all", help="comma-separated, or all (default)")
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--threads", type=int, default=1, help="torch intra-op threads (default 1)")
     args = p.parse_args()
@@ -64,7 +64,8 @@ def main() -> None:
         f"train scenes per task: {[len(t.train) for t in tasks]}; epochs: {args.epochs}; "
         f"best of {args.repeats} interleaved rounds"
     )
-    names = args.methods.split(",")
+    trained = sorted(n for n, cls in discover().items() if cls.trains and n != "finetune")
+    names = ["finetune", *trained] if args.methods == "all" else args.methods.split(",")
     best: dict[str, tuple[float, int]] = {}
     for _ in range(args.repeats):  # interleaved, so a slow spell of the machine hits every method
         for name in names:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Callable
+from typing import Any
 
 from c2inet.errors import InputError, one_line
 
@@ -24,34 +25,27 @@ def plain_parser(prog: str, description: str) -> argparse.ArgumentParser:
     return _Parser(prog=prog, description=description.replace("``", ""))
 
 
-def bounded_int(low: int, high: int) -> Callable[[str], int]:
-    """An argparse ``type``: an integer in [low, high], else a one-line usage error."""
-
-    def convert(text: str) -> int:
+def _bounded(kind: type, what: str, low: float, high: float) -> Callable[[str], Any]:
+    def convert(text: str):
         try:
-            value = int(text)
+            value = kind(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-        if not low <= value <= high:
-            raise argparse.ArgumentTypeError(f"{value} is not between {low} and {high}")
-        return value
-
-    return convert
-
-
-def bounded_float(low: float, high: float) -> Callable[[str], float]:
-    """An argparse ``type``: a number in [low, high] (NaN is in no range), else a usage error."""
-
-    def convert(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
+        if not low <= value <= high:  # NaN is in no range
             raise argparse.ArgumentTypeError(f"{text} is not between {low:g} and {high:g}")
         return value
 
     return convert
+
+
+def bounded_int(low: int, high: int) -> Callable[[str], int]:
+    """An argparse ``type``: an integer in [low, high], else a one-line usage error."""
+    return _bounded(int, "an integer", low, high)
+
+
+def bounded_float(low: float, high: float) -> Callable[[str], float]:
+    """An argparse ``type``: a number in [low, high], else a one-line usage error."""
+    return _bounded(float, "a number", low, high)
 
 
 def guarded(main: Callable[[list[str] | None], int]) -> Callable[[list[str] | None], int]:
