@@ -248,3 +248,16 @@ def test_headless_chromium_renders_the_web_viewer(recorded, tmp_path):
     assert image.shape[:2] == (900, 1600)
     # a rendered viewer has panels, text and trajectories, not one background colour
     assert len(np.unique(image.reshape(-1, image.shape[-1]), axis=0)) > 500  # blank: < 10
+
+
+def test_every_registered_method_gets_a_colour_of_its_own():
+    """``--methods all`` draws each method in its own colour, named in the legend."""
+    from c2inet.methods.base import discover
+    from viz.colours import colour_name, legend_markdown
+
+    methods = sorted(discover())
+    colours = {method_colour(i) for i in range(len(methods))}
+    names = {colour_name(i) for i in range(len(methods))}
+    assert len(colours) == len(names) == len(methods)
+    assert all(c not in colours for c in ((150, 150, 150), (40, 170, 60)))  # truth's colours
+    assert legend_markdown(methods).count("**") == 2 * len(methods)
