@@ -2,6 +2,7 @@
 
 import hashlib
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -87,3 +88,12 @@ def test_file_patterns_match_regular_files_only(tmp_path, kind):
     )
     with pytest.raises(InputError, match="no regular file"):
         build_domain(parse_scenario("mine_a", [tmp_path])[0], 0)
+
+
+def test_leave_one_out_never_trains_on_the_held_out_recordings():
+    """sgan's protocol: each held-out scene's recordings appear in its test split alone."""
+    for spec in parse_scenario("eth_ucy_loo_eth,hotel,univ,zara1,zara2"):
+        files = {split: spec.knobs()[split] for split in ("train", "val", "test")}
+        held_out = {Path(p).stem for p in files["test"]}
+        seen = {Path(p).stem.rsplit("_", 1)[0] for split in ("train", "val") for p in files[split]}
+        assert held_out and not held_out & seen, spec.name
