@@ -55,10 +55,8 @@ def observed_features(windows: Windows) -> np.ndarray:
         gaps = np.linalg.norm(last[:, None] - last[None], axis=-1) + np.diag(
             np.full(len(last), np.inf)
         )
-        nearest = gaps.min(1) if len(last) > 1 else np.array([np.nan])
-        rows.append(
-            [*per_agent[agents].mean(0), len(last), np.nanmean(nearest), np.nanmin(nearest)]
-        )
+        nearest = gaps.min(1) if len(last) > 1 else np.array([-1.0])  # -1: nobody near
+        rows.append([*per_agent[agents].mean(0), len(last), nearest.mean(), nearest.min()])
     features = np.array(rows)
     return np.nan_to_num(features, nan=-1.0, posinf=-1.0)
 
