@@ -1,8 +1,10 @@
 """Real trajectories from text files in the ETH-UCY format (``frame agent x y`` per line).
 
 Each value of a files family maps to train, optional val, and test file patterns (globs relative
-to the family TOML, or absolute). Every file becomes one scene: its frames on a uniform grid,
-agents absent from a frame marked NaN. Nothing is simulated; knobs describe the recording.
+to the family TOML, or absolute). Tracks stay sparse: each group of tracks whose frame ranges
+overlap becomes one scene on a uniform frame grid (agents absent from a frame marked NaN), so a
+file of thousands of separate recordings, or of agents a million frames apart, costs memory in
+proportion to its rows. Nothing is simulated; knobs describe the recording.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from c2inet.data import OBS_LEN, PRED_LEN
 from c2inet.errors import InputError, quote
 from c2inet.options import check_range
 from sim.data import SPLITS, Domain, Scene
@@ -21,6 +24,8 @@ from sim.generators import Generator
 from sim.stats import motion_stats, proximity_stats
 
 MAX_COORDINATE = 1e6  # metres: beyond it a coordinate is a unit error, and statistics overflow
+MAX_CELLS = 2_000_000  # frames x agents of one dense scene (32 MB); larger ones are cut in time
+WINDOW = OBS_LEN + PRED_LEN
 
 
 @dataclass(frozen=True)
@@ -31,6 +36,7 @@ class FilesKnobs:
     val: tuple[str, ...] = ()
     test: tuple[str, ...] = ()
     dt: float = 0.4  # s per frame step of the files
+    split_gaps: bool = False  # a track that skips frames continues as a new track
 
     def __post_init__(self):
         if not self.train or not self.test:
@@ -38,14 +44,82 @@ class FilesKnobs:
         check_range("dt", self.dt, 0, 10, open_low=True)
 
 
-def read_trajectory_file(path: Path) -> Scene:
-    """Parse and validate one ETH-UCY text file; errors name the file and line."""
+def read_trajectory_file(path: Path, split_gaps: bool = False) -> list[Scene]:
+    """Parse and validate one ETH-UCY text file into scenes; errors name the file and line.
+
+    Tracks stay sparse: each agent keeps its own frame range, and agents whose ranges overlap
+    (directly or through others) form one scene, so memory grows with the rows, not with the
+    file's frames times its agents. A scene larger than ``MAX_CELLS`` is cut in time into pieces
+    overlapping by one window less a frame: every 20-frame window lies in exactly one piece.
+    With ``split_gaps`` a track that skips frames continues as a new track (a new id) instead of
+    being an error.
+    """
+    data = _rows(path)
+    data = data[np.lexsort((data[:, 0], data[:, 1]))]  # by agent, then frame
+    frame, agent, line = data[:, 0], data[:, 1], data[:, 4].astype(int)
+    track = _tracks(path, frame, agent, line, split_gaps)
+    steps = np.diff(frame)[(track[1:] == track[:-1])]
+    step = float(steps.min()) if len(steps) else 1.0
+    index = (frame - frame.min()) / step
+    if not np.allclose(index, np.round(index)):
+        raise InputError(f"{path}: frame ids are not on a uniform grid of step {step:g}")
+    index = np.round(index).astype(np.int64)
+    bounds = np.flatnonzero(np.diff(track, prepend=-1, append=track[-1] + 1))
+    first, last = index[bounds[:-1]], index[bounds[1:] - 1]  # per track, in track order
+    ids = _track_ids(agent[bounds[:-1]])
+    scenes = []
+    for members in _components(first, last):
+        start, stop = first[members].min(), last[members].max() + 1
+        length = max(MAX_CELLS // len(members), 4 * WINDOW)
+        for piece in range(start, stop, length - WINDOW + 1):  # windows start in one piece only
+            end = min(piece + length, stop)
+            present = members[(first[members] < end) & (last[members] >= piece)]
+            positions = np.full((end - piece, len(present), 2), np.nan)
+            for column, t in enumerate(present):
+                rows = slice(bounds[t], bounds[t + 1])
+                keep = (index[rows] >= piece) & (index[rows] < end)
+                positions[index[rows][keep] - piece, column] = data[rows, 2:4][keep]
+            scenes.append(Scene(positions, ids[present]))
+            if end == stop:
+                break
+    return scenes
+
+
+def _rows(path: Path) -> np.ndarray:
+    """(rows, 5): frame, agent, x, y and the line number of every row of the file."""
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as error:
         raise InputError(f"{path}: cannot read: {error}") from None
-    rows = []
-    for number, line in enumerate(text.splitlines(), start=1):  # tolerates CRLF
+    lines = text.splitlines()  # tolerates CRLF
+    numbers = np.array([n for n, line in enumerate(lines, start=1) if line.strip()], dtype=float)
+    if not len(numbers):
+        raise InputError(f"{path}: no trajectory rows")
+    try:  # the fast path; a file it refuses is read line by line for the exact error
+        values = np.loadtxt(lines, ndmin=2, comments=None)
+    except ValueError:
+        values = None
+    if values is None or values.shape != (len(numbers), 4):
+        _first_bad_line(path, lines)
+    finite = np.isfinite(values).all(1)
+    far = np.abs(values[:, 2:]).max(1) > MAX_COORDINATE
+    whole = (values[:, 1] == np.round(values[:, 1])) & (np.abs(values[:, 1]) <= 2**53)
+    for bad, problem in ((~finite, "non-finite value"), (far, None), (~whole, "id")):
+        if bad.any():
+            k = int(np.argmax(bad))
+            where, line = f"{path}:{int(numbers[k])}", lines[int(numbers[k]) - 1]
+            if problem is None:
+                raise InputError(f"{where}: coordinate beyond {MAX_COORDINATE:g} m")
+            if problem == "id":
+                agent = quote(line.split()[1], 20)
+                raise InputError(f"{where}: agent id {agent} is not a whole number")
+            raise InputError(f"{where}: {problem} in {quote(line.strip())}")
+    return np.column_stack([values, numbers])
+
+
+def _first_bad_line(path: Path, lines: list[str]) -> None:
+    """Raise the error of the first line that is not four numbers."""
+    for number, line in enumerate(lines, start=1):
         fields = line.split()
         if not fields:
             continue
@@ -53,52 +127,69 @@ def read_trajectory_file(path: Path) -> Scene:
         if len(fields) != 4:
             raise InputError(f"{where}: expected 4 columns (frame agent x y), got {len(fields)}")
         try:
-            values = [float(f) for f in fields]
+            [float(f) for f in fields]
         except ValueError:
             raise InputError(f"{where}: non-numeric value in {quote(line.strip())}") from None
-        if not all(np.isfinite(values)):
-            raise InputError(f"{where}: non-finite value in {quote(line.strip())}")
-        if max(abs(values[2]), abs(values[3])) > MAX_COORDINATE:
-            raise InputError(f"{where}: coordinate beyond {MAX_COORDINATE:g} m")
-        if not values[1].is_integer() or abs(values[1]) > 2**53:
-            raise InputError(f"{where}: agent id {quote(fields[1], 20)} is not a whole number")
-        rows.append([*values, number])
-    if not rows:
-        raise InputError(f"{path}: no trajectory rows")
-    data = np.array(rows)
-    data = data[np.lexsort((data[:, 0], data[:, 1]))]  # by agent, then frame
-    frame, agent, line = data[:, 0], data[:, 1], data[:, 4].astype(int)
-    same_agent = agent[1:] == agent[:-1]
+    raise InputError(f"{path}: cannot read its rows as numbers")
+
+
+def _tracks(path, frame, agent, line, split_gaps: bool) -> np.ndarray:
+    """The track number of every row (rows sorted by agent, then frame): an agent's rows are one
+    track with a uniform frame step; with ``split_gaps`` a skip of whole steps starts another."""
+    same = agent[1:] == agent[:-1]
     steps = np.diff(frame)
-    first_step = {}  # agent -> its frame step
-    for k in np.nonzero(same_agent)[0]:
-        expected = first_step.setdefault(agent[k], steps[k])
-        if steps[k] <= 0 or not np.isclose(steps[k], expected):
-            raise InputError(
-                f"{path}:{line[k + 1]}: agent {agent[k]:g} breaks its uniform frame step "
-                f"{expected:g} (frame {frame[k]:g} then {frame[k + 1]:g})"
-            )
-    step = float(min(first_step.values())) if first_step else 1.0
-    index = (frame - frame.min()) / step
-    if not np.allclose(index, np.round(index)):
-        raise InputError(f"{path}: frame ids are not on a uniform grid of step {step:g}")
-    index = np.round(index).astype(np.int64)
-    ids, column = np.unique(agent, return_inverse=True)
-    positions = np.full((index.max() + 1, len(ids), 2), np.nan)
-    positions[index, column] = data[:, 2:4]
-    return Scene(positions, ids.astype(np.int64))
+    agent_of_row = np.cumsum(np.concatenate([[True], ~same])) - 1
+    pairs = np.flatnonzero(same)  # steps inside one agent's rows
+    agents, first = np.unique(agent_of_row[pairs], return_index=True)
+    first_step = np.full(agent_of_row[-1] + 1, np.nan)  # every agent's step is its first one
+    first_step[agents] = steps[pairs[first]]
+    expected = first_step[agent_of_row[:-1]]
+    uniform = (steps > 0) & np.isclose(steps, expected)
+    ratio = np.divide(steps, expected, out=np.zeros_like(steps), where=expected > 0)
+    gap = split_gaps & (ratio > 1) & np.isclose(ratio, np.round(ratio))
+    broken = same & ~uniform & ~gap
+    if broken.any():
+        k = int(np.argmax(broken))
+        raise InputError(
+            f"{path}:{line[k + 1]}: agent {agent[k]:g} breaks its uniform frame step "
+            f"{expected[k]:g} (frame {frame[k]:g} then {frame[k + 1]:g})"
+            + ("" if split_gaps else "; split_gaps = true splits tracks at gaps")
+        )
+    return np.concatenate([[0], np.cumsum(~same | gap)])
+
+
+def _track_ids(agents: np.ndarray) -> np.ndarray:
+    """An id per track: the agent's own for its first track, new ones above all for the rest."""
+    ids = agents.astype(np.int64)
+    later = np.flatnonzero(np.concatenate([[False], agents[1:] == agents[:-1]]))
+    ids[later] = ids.max() + 1 + np.arange(len(later))
+    return ids
+
+
+def _components(first: np.ndarray, last: np.ndarray) -> list[np.ndarray]:
+    """Tracks grouped into scenes: those whose frame ranges overlap, directly or in a chain."""
+    order = np.argsort(first, kind="stable")
+    groups, current, reach = [], [order[0]], last[order[0]]
+    for t in order[1:]:
+        if first[t] > reach:
+            groups.append(np.sort(current))
+            current, reach = [], first[t]
+        current.append(t)
+        reach = max(reach, last[t])
+    groups.append(np.sort(current))
+    return groups
 
 
 class FilesGenerator(Generator):
     """Recorded trajectories read from ETH-UCY-format text files."""
 
     name = "files"
-    version = 2  # 2: no overlap count (it needed a made-up body radius)
+    version = 3  # 2: no overlap count; 3: sparse tracks, a scene per group of overlapping tracks
     Knobs = FilesKnobs
 
     @classmethod
     def resolve(cls, knobs: FilesKnobs, base_dir: Path) -> dict[str, Any]:
-        out: dict[str, Any] = {"dt": knobs.dt}
+        out: dict[str, Any] = {"dt": knobs.dt, "split_gaps": knobs.split_gaps}
         for split in SPLITS:
             paths: list[str] = []
             for pattern in getattr(knobs, split):
@@ -122,11 +213,17 @@ class FilesGenerator(Generator):
         }
 
     def rollout(self, knobs: dict[str, Any], seed, frames: int) -> Scene:
-        scene = read_trajectory_file(Path(knobs["test"][0]))
+        scenes = read_trajectory_file(Path(knobs["test"][0]), knobs["split_gaps"])
+        scene = max(scenes, key=lambda s: s.num_frames)
         return Scene(scene.positions[:frames], scene.agent_ids)
 
     def generate(self, name, family, knobs: dict[str, Any], splits, seed, workers=1) -> Domain:
-        scenes = {split: [read_trajectory_file(Path(p)) for p in knobs[split]] for split in SPLITS}
+        scenes = {
+            split: [
+                s for p in knobs[split] for s in read_trajectory_file(Path(p), knobs["split_gaps"])
+            ]
+            for split in SPLITS
+        }
         everything = [s for split in SPLITS for s in scenes[split]]
         stats = motion_stats(everything, knobs["dt"])
         stats.update(proximity_stats(everything))  # no overlaps: recorded people have no radius

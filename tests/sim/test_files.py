@@ -24,7 +24,7 @@ def write(tmp_path, text, name="t.txt"):
 
 def test_reads_tabs_spaces_crlf_and_float_frames(tmp_path):
     path = write(tmp_path, "10.0\t1\t0.0\t1.0\r\n20 1 0.5 1.0\r\n20.0  2  3.0 4.0\r\n\r\n")
-    scene = read_trajectory_file(path)
+    (scene,) = read_trajectory_file(path)
     assert scene.positions.shape == (2, 2, 2)
     np.testing.assert_array_equal(scene.agent_ids, [1, 2])
     np.testing.assert_array_equal(scene.positions[:, 0], [[0.0, 1.0], [0.5, 1.0]])
@@ -66,11 +66,13 @@ def test_vendored_data_matches_its_checksums():
 def test_eth_ucy_tasks_train_on_train_files_and_test_on_val_files():
     (spec,) = parse_scenario("eth_ucy_eth")
     domain = build_domain(spec, root_seed=0)
-    assert [len(domain.scenes[s]) for s in ("train", "val", "test")] == [1, 0, 1]
+    counts = [len(domain.scenes[s]) for s in ("train", "val", "test")]
+    assert counts[0] >= 1 and counts[1] == 0 and counts[2] >= 1  # a scene per group of tracks
     train, test = domain.windows("train", min_agents=2), domain.windows("test", min_agents=2)
     assert len(train) >= 40 and len(test) >= 30
     # biwi_eth: train frames end before val frames start, so no window is in both
-    assert domain.scenes["train"][0].num_frames > domain.scenes["test"][0].num_frames
+    frames = {s: sum(x.num_frames for x in domain.scenes[s]) for s in ("train", "test")}
+    assert frames["train"] > frames["test"]
     assert 0.5 < domain.stats["mean_speed"] < 4.0  # the known fast ETH time base, in m/s
 
 
@@ -97,3 +99,51 @@ def test_leave_one_out_never_trains_on_the_held_out_recordings():
         held_out = {Path(p).stem for p in files["test"]}
         seen = {Path(p).stem.rsplit("_", 1)[0] for split in ("train", "val") for p in files[split]}
         assert held_out and not held_out & seen, spec.name
+
+
+def blocks(scenes: int, agents: int = 2, frames: int = 20, spacing: int = 1000) -> str:
+    """A file of ``scenes`` recordings, each its own block of frame ids."""
+    rng = np.random.default_rng(0)
+    lines = []
+    for scene in range(scenes):
+        for a in range(agents):
+            start, velocity = rng.uniform(-5, 5, 2), rng.normal(0, 0.4, 2)
+            for t in range(frames):
+                x, y = start + velocity * t
+                lines.append(f"{scene * spacing + 10 * t} {agents * scene + a} {x:.3f} {y:.3f}")
+    return "\n".join(lines) + "\n"
+
+
+def test_tracks_stay_sparse_a_scene_per_block(tmp_path):
+    """500 two-agent recordings in one file: 500 small scenes, not one of every frame by every
+    agent id (which for 5,000 asked for 69 GiB)."""
+    scenes = read_trajectory_file(write(tmp_path, blocks(500)))
+    assert len(scenes) == 500 and all(s.positions.shape == (20, 2, 2) for s in scenes)
+    far = read_trajectory_file(write(tmp_path, "0 1 0 0\n10 1 0.4 0\n10000000 2 1 1\n"))
+    assert [s.positions.shape for s in far] == [(2, 1, 2), (1, 1, 2)]  # a million frames apart
+
+
+def test_long_scenes_are_cut_in_time_without_losing_or_doubling_a_window(tmp_path, monkeypatch):
+    import sim.generators.files as files
+    from c2inet.data import Windows
+    from sim.data import cut_windows
+
+    path = write(tmp_path, blocks(1, agents=6, frames=300))
+    (whole,) = read_trajectory_file(path)
+    monkeypatch.setattr(files, "MAX_CELLS", 6 * 90)
+    pieces = read_trajectory_file(path)
+    assert len(pieces) > 3 and max(p.num_frames for p in pieces) <= 90
+    cut = Windows.concat([w for w in map(cut_windows, pieces) if w is not None])
+    reference = cut_windows(whole)
+    np.testing.assert_array_equal(cut.positions, reference.positions)
+    np.testing.assert_array_equal(cut.scene_start, reference.scene_start)
+
+
+def test_a_track_with_a_gap_is_an_error_or_two_tracks(tmp_path):
+    text = "0 7 0 0\n10 7 1 0\n40 7 4 0\n50 7 5 0\n0 8 0 1\n10 8 1 1\n"
+    path = write(tmp_path, text)
+    with pytest.raises(InputError, match=":3: agent 7 breaks .* split_gaps = true"):
+        read_trajectory_file(path)
+    first, later = read_trajectory_file(path, split_gaps=True)
+    assert first.agent_ids.tolist() == [7, 8] and later.agent_ids.tolist() == [9]  # a new id
+    np.testing.assert_array_equal(later.positions[:, 0], [[4, 0], [5, 0]])

@@ -30,4 +30,4 @@ def test_the_fuzz_targets_reach_both_outcomes():
     assert outcome(TARGETS[0], "crowd_noise_0.1..0.3") == "ok"
     assert outcome(TARGETS[0], "crowd_noise_0.1-0.3") == "input error"
     assert scenario_target("crowd_noise_0.1+crowd_radius_0.2")
-    assert data_file_target("0 1 0 0\n10 1 0.4 0\n").agent_ids.tolist() == [1]
+    assert data_file_target("0 1 0 0\n10 1 0.4 0\n")[0].agent_ids.tolist() == [1]
