@@ -8,6 +8,7 @@ from scipy.spatial import cKDTree
 from sim.data import Scene
 
 MIN_STEP = 0.02  # m per frame below which an agent counts as standing (no heading)
+DENSE_AGENTS = 64  # up to this many agents a scene's pairs are taken all at once
 
 
 def motion_stats(scenes: list[Scene], dt: float) -> dict[str, float]:
@@ -31,17 +32,44 @@ def motion_stats(scenes: list[Scene], dt: float) -> dict[str, float]:
 
 def proximity_stats(scenes: list[Scene], contact: float | None = None) -> dict[str, float]:
     """Minimum inter-agent distance (m) and, given a ``contact`` distance (the sum of the two
-    radii), the number of overlapping agent pairs, counted once per recorded frame."""
+    radii), the number of overlapping agent pairs, counted once per recorded frame.
+
+    Scenes of up to ``DENSE_AGENTS`` agents take every pair of every frame at once; larger ones
+    a k-d tree per frame.
+    """
     smallest, overlaps = np.inf, 0
     for scene in scenes:
-        for frame in scene.positions:
-            points = frame[np.isfinite(frame[:, 0])]
-            if len(points) < 2:
-                continue
-            tree = cKDTree(points)
-            distance, _ = tree.query(points, k=2)
-            smallest = min(smallest, float(distance[:, 1].min()))
-            if contact is not None:
-                overlaps += len(tree.query_pairs(contact, output_type="ndarray"))
+        if scene.positions.shape[1] <= DENSE_AGENTS:
+            low, count = _dense_pairs(scene.positions, contact)
+        else:
+            low, count = _tree_pairs(scene.positions, contact)
+        smallest, overlaps = min(smallest, low), overlaps + count
     out = {"min_separation": float(smallest) if np.isfinite(smallest) else 0.0}
     return out if contact is None else {**out, "overlaps": overlaps}
+
+
+def _dense_pairs(positions: np.ndarray, contact: float | None) -> tuple[float, int]:
+    """(smallest distance, pairs closer than ``contact``) over all frames, all pairs at once."""
+    agents = positions.shape[1]
+    if agents < 2:
+        return np.inf, 0
+    first, second = np.triu_indices(agents, k=1)
+    distance = np.linalg.norm(positions[:, first] - positions[:, second], axis=-1)  # (F, pairs)
+    distance = distance[np.isfinite(distance)]
+    if not distance.size:
+        return np.inf, 0
+    return float(distance.min()), int((distance <= contact).sum()) if contact is not None else 0
+
+
+def _tree_pairs(positions: np.ndarray, contact: float | None) -> tuple[float, int]:
+    smallest, overlaps = np.inf, 0
+    for frame in positions:
+        points = frame[np.isfinite(frame[:, 0])]
+        if len(points) < 2:
+            continue
+        tree = cKDTree(points)
+        distance, _ = tree.query(points, k=2)
+        smallest = min(smallest, float(distance[:, 1].min()))
+        if contact is not None:
+            overlaps += len(tree.query_pairs(contact, output_type="ndarray"))
+    return smallest, overlaps

@@ -181,3 +181,18 @@ def test_a_damaged_cache_entry_is_never_used(family_dir, tmp_path, capsys):
     entry.write_bytes(intact[: len(intact) // 2])  # truncated
     build_domain(spec, 0, cache)
     assert "generating it again" in capsys.readouterr().err
+
+
+def test_proximity_statistics_agree_all_pairs_at_once_and_by_k_d_tree(monkeypatch):
+    """The fast path (all pairs of all frames) gives the k-d tree's numbers, absences included."""
+    import sim.stats as stats
+
+    rng = np.random.default_rng(0)
+    scenes = []
+    for agents in (1, 2, 7, 30):
+        positions = rng.uniform(0, 4, (25, agents, 2))
+        positions[rng.random((25, agents)) < 0.2] = np.nan  # absent agents
+        scenes.append(Scene(positions, np.arange(agents)))
+    fast = stats.proximity_stats(scenes, contact=0.3)
+    monkeypatch.setattr(stats, "DENSE_AGENTS", 0)
+    assert stats.proximity_stats(scenes, contact=0.3) == fast and fast["overlaps"] > 0
