@@ -14,7 +14,8 @@ from pathlib import Path
 from typing import Any
 
 from c2inet.errors import InputError, did_you_mean, quote
-from sim.families import Family, available_families, load_family
+from c2inet.options import build
+from sim.families import Family, Splits, available_families, load_family
 
 MAX_DOMAINS = 64
 MAX_LABEL = 32  # characters of a value as written in a domain name
@@ -112,10 +113,7 @@ def with_overrides(family: Family, overrides: dict[str, Any]) -> Family:
     unknown = sorted(set(splits) - {"train", "val", "test"})
     if unknown:
         raise InputError(f"--set data.splits.{unknown[0]}: expected splits.train, .val or .test")
-    try:
-        sizes = replace(family.splits, **{k: int(v) for k, v in splits.items()})
-    except (TypeError, ValueError):
-        raise InputError(f"--set data.splits: sizes must be integers, got {splits}") from None
+    sizes = build(Splits, {**vars(family.splits), **splits}, "--set data.splits")
     return replace(family, defaults={**family.defaults, **knobs}, splits=sizes)
 
 

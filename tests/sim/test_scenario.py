@@ -153,3 +153,12 @@ def test_a_family_file_must_be_a_regular_file(tmp_path):
     os.mkfifo(tmp_path / "piped.toml")  # reading it would block forever
     with pytest.raises(InputError, match="regular file"):
         parse_scenario("piped_0.1", [tmp_path])
+
+
+@pytest.mark.parametrize(
+    "value, message", [(1e400, "must be an integer"), (1.5, "must be an integer"), (-3, "range")]
+)
+def test_split_size_overrides_go_through_the_option_builder(value, message):
+    """Found by benchmarks/fuzz.py: 1e400 crashed int(), and 1.5 was cut to 1."""
+    with pytest.raises(InputError, match=message):
+        parse_scenario("crowd_noise_0.1", overrides={"splits.train": value})
