@@ -30,8 +30,9 @@ from tqdm import tqdm
 from c2inet.backbones import BACKBONES
 from c2inet.errors import InputError, did_you_mean
 from c2inet.files import writable_folder, write_atomic, write_text_atomic
-from c2inet.methods.base import build_options, get_method
+from c2inet.methods.base import get_method
 from c2inet.model import ModelConfig
+from c2inet.options import build
 from c2inet.trainer import ContinualTrainer, Result, TrainConfig
 from sim.backends import BACKENDS, run_jobs
 from sim.curriculum import SAMPLE_SCENES, Curriculum, JobInputs, make_showcases, make_tasks
@@ -119,14 +120,14 @@ class ExperimentConfig:
         return parse_scenario(self.scenario, list(self.scenarios_dir), self.settings.get("data"))
 
     def model_config(self) -> ModelConfig:
-        return build_options(
+        return build(
             ModelConfig, {"backbone": self.backbone, **self.settings.get("model", {})}, "model"
         )
 
     def train_config(self, seed_index: int = 0) -> TrainConfig:
         """The trainer's options of the job with seed ``seed_index`` (its own seed)."""
         train = {**self.settings.get("train", {}), "epochs": self.epochs, "k": self.k}
-        return build_options(TrainConfig, {**train, "seed": self.seed + seed_index}, "train")
+        return build(TrainConfig, {**train, "seed": self.seed + seed_index}, "train")
 
     def method(self, name: str):
         return get_method(name)(self.model_config(), self.settings.get(name))

@@ -57,11 +57,6 @@ class NoOptions:
     """Methods without options."""
 
 
-def build_options(cls: type, values: dict[str, Any], where: str = "options"):
-    """``cls`` built from ``values`` by the project's one option builder (types and ranges)."""
-    return build(cls, values, where)
-
-
 class Method:
     """Plain sequential training; subclasses override the hooks they need."""
 
@@ -79,7 +74,7 @@ class Method:
 
     def __init__(self, model_config: ModelConfig, options: dict[str, Any] | None = None):
         self.model_config = model_config
-        self.options = build_options(self.Options, options or {}, self.name)
+        self.options = build(self.Options, options or {}, self.name)
 
     def build_model(self) -> torch.nn.Module:
         return Predictor(self.model_config)
