@@ -116,8 +116,29 @@ def summarise_study(study: Study, entries: list[tuple[str, ExperimentConfig, dic
     return {"study": study.title, "paper": study.paper, "rows": rows}
 
 
+def order_table(summary: dict) -> list[str]:
+    """For order studies: each family's orders side by side, final averages and the change
+    against the family's first order."""
+    lines = [
+        "| family | order | final ADE/FDE | ± std | change of ADE |",
+        "|---|---|---|---|---|",
+    ]
+    reference: dict[str, float] = {}
+    for r in summary["rows"]:
+        family, order = r["scenario"].rsplit("_", 1)
+        ade, fde = r["avg_seen_ade"][-1], r["avg_seen_fde"][-1]
+        base = reference.setdefault(family, ade)
+        lines.append(
+            f"| {family} | {order} | {ade:.3f}/{fde:.3f} | {r['avg_seen_ade_std'][-1]:.3f} | "
+            f"{100 * (ade / base - 1):+.1f} % |"
+        )
+    return [*lines, ""]
+
+
 def study_markdown(summary: dict) -> str:
     lines = [f"# {summary['study']}", "", f"The paper: {summary['paper']}.", ""]
+    if summary.get("by") == "order":
+        lines += order_table(summary)
     lines += [
         "Cells: ADE/FDE in metres averaged over the tasks seen so far after each task, mean over "
         "seeds (± std of the final average); in brackets the change of the final ADE against the "
@@ -196,10 +217,15 @@ def run_study(
     study = STUDIES[name]
     entries = run_sweep(study_sweep(study, base, scenarios), out, execution, **kw)
     summary = {**summarise_study(study, entries), "by": study.by}
+    write_study(summary, out)
+    return summary
+
+
+def write_study(summary: dict, out: Path) -> None:
+    """``study.json``, ``study.md`` and ``study.png`` of a study's summary."""
     write_text_atomic(out / "study.json", json.dumps(summary, indent=1) + "\n")
     write_text_atomic(out / "study.md", study_markdown(summary))
     study_figure(summary, out / "study.png")
-    return summary
 
 
 @guarded
