@@ -25,7 +25,13 @@ def start(out: Path, cache: Path, *extra: str, cwd: Path | None = None) -> subpr
     if out is not None:
         command += ["--out", str(out)]
     return subprocess.Popen(
-        command, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        command,
+        cwd=cwd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        # a runner started in the background ignores Ctrl-C, and so would the run it starts
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
 
 
