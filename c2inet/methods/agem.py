@@ -4,8 +4,8 @@ step increase the loss on an episodic memory of old scenes, to first order.
 The memory is the coresets' (``per_task`` random scenes of every finished task), but it is not
 trained on: after each backward pass the loss of ``memory_batch`` remembered scenes gives a
 reference gradient, and when the step's gradient points against it (negative dot product) it is
-projected onto the plane orthogonal to it. Hooks: ``training_windows`` (the task's own scenes,
-no replay), ``after_backward``, ``after_task``.
+projected onto the plane orthogonal to it. Hooks: ``before_task``, ``training_windows`` (the
+task's own scenes, no replay), ``after_backward``, ``after_task``.
 Example: ``--methods agem``
 """
 
@@ -57,8 +57,10 @@ class AGEM(Coresets):
         super().__init__(model_config, options)
         self.projected = 0  # steps of the current task whose gradient was projected
 
-    def training_windows(self, ctx: TaskContext) -> Windows:
+    def before_task(self, ctx: TaskContext) -> None:
         self.projected = 0
+
+    def training_windows(self, ctx: TaskContext) -> Windows:
         return ctx.train
 
     def after_backward(self, ctx: TaskContext) -> None:

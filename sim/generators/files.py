@@ -101,19 +101,23 @@ def _rows(path: Path) -> np.ndarray:
         values = None
     if values is None or values.shape != (len(numbers), 4):
         _first_bad_line(path, lines)
+
+    def where(bad: np.ndarray) -> tuple[str, str]:
+        """The first bad row's place (file:line) and its line's text."""
+        number = int(numbers[np.argmax(bad)])
+        return f"{path}:{number}", lines[number - 1]
+
     finite = np.isfinite(values).all(1)
+    if not finite.all():
+        place, line = where(~finite)
+        raise InputError(f"{place}: non-finite value in {quote(line.strip())}")
     far = np.abs(values[:, 2:]).max(1) > MAX_COORDINATE
+    if far.any():
+        raise InputError(f"{where(far)[0]}: coordinate beyond {MAX_COORDINATE:g} m")
     whole = (values[:, 1] == np.round(values[:, 1])) & (np.abs(values[:, 1]) <= 2**53)
-    for bad, problem in ((~finite, "non-finite value"), (far, None), (~whole, "id")):
-        if bad.any():
-            k = int(np.argmax(bad))
-            where, line = f"{path}:{int(numbers[k])}", lines[int(numbers[k]) - 1]
-            if problem is None:
-                raise InputError(f"{where}: coordinate beyond {MAX_COORDINATE:g} m")
-            if problem == "id":
-                agent = quote(line.split()[1], 20)
-                raise InputError(f"{where}: agent id {agent} is not a whole number")
-            raise InputError(f"{where}: {problem} in {quote(line.strip())}")
+    if not whole.all():
+        place, line = where(~whole)
+        raise InputError(f"{place}: agent id {quote(line.split()[1], 20)} is not a whole number")
     return np.column_stack([values, numbers])
 
 

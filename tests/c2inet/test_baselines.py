@@ -178,11 +178,11 @@ def test_si_importance_grows_where_weights_reduced_the_loss():
     assert total > 0 and all((v >= 0).all() for v in method.importance.values())
 
 
-def test_c2inet_offline_enqueues_clusters_and_refines_them():
+def test_c2inet_offline_enqueues_clusters_and_refines_them(monkeypatch):
     """Each task adds its k clusters with mass 1/t; the refinement moves them during the task."""
-    at_start = []
     from c2inet.methods.c2inet_offline import C2INetOffline
 
+    at_start = []
     cluster = C2INetOffline._cluster
 
     def spy(self, ctx, centres):
@@ -190,14 +190,10 @@ def test_c2inet_offline_enqueues_clusters_and_refines_them():
         if centres is None:
             at_start.append(ctx.model.queue.mixture.detached())
 
-    C2INetOffline._cluster = spy
-    try:
-        _, _, model = trained("c2inet-offline", {"clusters": 3, "interval": 1})
-    finally:
-        C2INetOffline._cluster = cluster
+    monkeypatch.setattr(C2INetOffline, "_cluster", spy)
+    _, _, model = trained("c2inet-offline", {"clusters": 3, "interval": 1})
     queue = model.queue
     assert queue.owners == [0, 0, 0, 1, 1, 1]
-    weights = queue.mixture.weights
-    torch.testing.assert_close(weights[:3].sum(), torch.tensor(0.5))
+    torch.testing.assert_close(queue.mixture.weights[:3].sum(), torch.tensor(0.5))
     assert not torch.allclose(queue.mixture.means[3:], at_start[1].means[3:])  # refined
     torch.testing.assert_close(queue.mixture.means[:3], at_start[1].means[:3])  # kept
