@@ -147,6 +147,7 @@ class ContinualTrainer:
         self.observers = observers or []
         self.progress = progress or (lambda iterable, **_: iterable)
         self.history: list[dict[str, Any]] = []
+        self.model: torch.nn.Module | None = None  # the trained model, once ``run`` returns
 
     def _notify(self, event: str, data: dict[str, Any]) -> None:
         for observer in self.observers:
@@ -185,6 +186,7 @@ class ContinualTrainer:
                 self._save(model, optimiser, rng, i, result)
             self._task_end(i, model, result)
         result.history = self.history
+        self.model = model
         return result
 
     def earlier_training_data(self, index: int) -> list[Windows]:

@@ -108,6 +108,7 @@ def available_families(extra_dirs: list[Path]) -> dict[str, Path]:
 
 
 MAX_FAMILY_BYTES = 1_000_000
+VALUE_NAME = r"[a-z0-9][a-z0-9_-]*(\.[a-z0-9_-]+)*"  # e.g. "univ", "0.1": safe in file names
 _FAMILY_KEYS = {"description", "generator", "knob", "seed_offset", "knobs", "splits", "values"}
 
 
@@ -151,7 +152,7 @@ def load_family(path: Path) -> Family:
     if knob is not None and (not isinstance(knob, str) or knob not in knob_names):
         raise InputError(f"{path}: knob {knob!r} is not a knob of generator {raw['generator']!r}")
     for name, table in values.items():
-        if not re.fullmatch(r"[a-z0-9][a-z0-9_-]*", name) or not isinstance(table, dict):
+        if not re.fullmatch(VALUE_NAME, name) or not isinstance(table, dict):
             raise InputError(f"{path}: bad value table {name!r}")
     seed_offset = raw.get("seed_offset", 0)
     if isinstance(seed_offset, bool) or not isinstance(seed_offset, int) or seed_offset < 0:

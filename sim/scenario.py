@@ -2,7 +2,7 @@
 
 VALUES is ``a..b`` (step from the decimals of ``a``), ``a..b:step`` or ``v1,v2,...``. FAMILY is
 the stem of a TOML file in ``sim/scenarios/`` or in an extra folder given by the user; name-valued
-families (real data) take names instead of numbers.
+families (real data) take names instead of numbers, or a range where the names are numbers.
 """
 
 from __future__ import annotations
@@ -137,7 +137,8 @@ def parse_scenario(
         name, values = _split_family(part, families)
         family = with_overrides(load_family(families[name]), overrides or {})
         if family.value_names:
-            labels = values.split(",")
+            ranged = _RANGE.match(values)  # numbered names (e.g. orca_radius) take ranges too
+            labels = [t for _, t in _numeric_values(values, part)] if ranged else values.split(",")
             for label in labels:
                 if label not in family.value_names:
                     known = ",".join(family.value_names)

@@ -9,6 +9,7 @@ from sim.data import Scene
 
 MIN_STEP = 0.02  # m per frame below which an agent counts as standing (no heading)
 DENSE_AGENTS = 64  # up to this many agents a scene's pairs are taken all at once
+PROFILES = ("closest", "speed", "heading_change", "first_speed")  # per-scene distributions
 
 
 def motion_stats(scenes: list[Scene], dt: float) -> dict[str, float]:
@@ -73,3 +74,41 @@ def _tree_pairs(positions: np.ndarray, contact: float | None) -> tuple[float, in
         if contact is not None:
             overlaps += len(tree.query_pairs(contact, output_type="ndarray"))
     return smallest, overlaps
+
+
+def scene_profiles(scenes: list[Scene], dt: float) -> dict[str, np.ndarray]:
+    """Per scene: its closest approach of two agents (m), mean speed (m/s), mean absolute
+    heading change per frame (rad), and its agents' mean speed over their first step (m/s).
+
+    These are the distributions a fidelity report compares between two families; a scene
+    without the quantity (a single agent, say) gets NaN.
+    """
+    out = {name: np.full(len(scenes), np.nan) for name in PROFILES}
+    for k, scene in enumerate(scenes):
+        positions = scene.positions
+        dense = positions.shape[1] <= DENSE_AGENTS
+        closest, _ = (_dense_pairs if dense else _tree_pairs)(positions, None)
+        step = np.linalg.norm(np.diff(positions, axis=0), axis=-1)  # (frames-1, agents)
+        present = np.isfinite(step)
+        first = present & (np.cumsum(present, axis=0) == 1)  # each agent's first step
+        moves = motion_stats([scene], dt)
+        out["closest"][k] = closest if np.isfinite(closest) else np.nan
+        out["speed"][k] = moves["mean_speed"] if present.any() else np.nan
+        out["heading_change"][k] = moves["heading_change"]
+        out["first_speed"][k] = step[first].mean() / dt if first.any() else np.nan
+    return out
+
+
+def realised_summary(scenes: list[Scene], dt: float) -> dict[str, float]:
+    """The statistics a generated family must match its reference on: minimum separation and
+    median closest approach (m), mean speed (m/s), heading change per frame (rad) and speed
+    over the first step (m/s)."""
+    profiles = scene_profiles(scenes, dt)
+    moves = motion_stats(scenes, dt)
+    return {
+        "min_separation": float(np.nanmin(profiles["closest"])),
+        "median_closest": float(np.nanmedian(profiles["closest"])),
+        "mean_speed": moves["mean_speed"],
+        "heading_change": moves["heading_change"],
+        "first_speed": float(np.nanmean(profiles["first_speed"])),
+    }

@@ -1,11 +1,12 @@
 """Pymunk crowds: agents are discs in zero gravity, steered through forces by a compiled controller.
 
-Every control step the controller (``crowd_controller``) sets each agent's velocity: a relaxation
-towards its preferred velocity (towards its goal, perturbed by Ornstein-Uhlenbeck behavioural
-noise of standard deviation ``noise`` m/s), plus anticipatory avoidance by the time-to-collision
-power law of Karamouzas, Skinner and Guy (PRL 2014) computed for the disc radii, then speculative
-contacts. Pymunk then moves the discs and resolves any contact that remains. Positions are
-recorded every ``dt`` seconds.
+Every control step the controller (``crowd_controller``) chooses each agent's velocity from its
+preferred velocity (towards its goal, perturbed by Ornstein-Uhlenbeck behavioural noise of
+standard deviation ``noise`` m/s): by optimal reciprocal collision avoidance (``orca``, van den
+Berg et al. 2011, as RVO2 computes it) or by a relaxation plus the time-to-collision power law of
+Karamouzas, Skinner and Guy (``ttc``, PRL 2014), then speculative contacts. Pymunk then moves the
+discs and resolves any contact that remains. Agents start at their preferred velocity
+(``start = "moving"``, as in ORCA data) or at rest. Positions are recorded every ``dt`` seconds.
 
 Many scenes are simulated in one Pymunk space, far apart, so that one controller call steers all
 of them; each scene still draws its start, speeds and noise from its own child seed.
@@ -30,6 +31,8 @@ from sim.generators.crowd_controller import Controller
 from sim.stats import motion_stats, proximity_stats
 
 LAYOUTS = ("circle_crossing", "corridor", "crossing")
+CONTROLLERS = ("ttc", "orca")
+STARTS = ("rest", "moving")
 PLACEMENT_BLOCKS = 50  # blocks of candidate starts to draw before the layout is called too full
 SCENE_GAP = 10.0  # m between the farthest reaches of two scenes sharing one space (> sensing)
 BATCH_SCENES = 32  # scenes per Pymunk space
@@ -42,6 +45,9 @@ class CrowdKnobs:
     """Knobs of a crowd domain; ranges are checked on construction."""
 
     layout: str = "circle_crossing"
+    controller: str = "ttc"  # "orca": optimal reciprocal collision avoidance (as RVO2)
+    start: str = "rest"  # "moving": agents start at their preferred velocity
+    horizon: float = 2.0  # s, ORCA's time horizon (collisions avoided this far ahead)
     agents: int = 2
     density: float = 0.0  # agents per m^2 of the layout's area; > 0 overrides ``agents``
     radius: float = 0.2  # m; the minimum centre distance of two agents is 2 * radius
@@ -61,6 +67,13 @@ class CrowdKnobs:
     def __post_init__(self):
         if self.layout not in LAYOUTS:
             raise InputError(f"layout={self.layout!r} is unknown (known: {', '.join(LAYOUTS)})")
+        for name, value, known in (
+            ("controller", self.controller, CONTROLLERS),
+            ("start", self.start, STARTS),
+        ):
+            if value not in known:
+                raise InputError(f"{name}={value!r} is unknown (known: {', '.join(known)})")
+        check_range("horizon", self.horizon, 0, 60, open_low=True)
         check_range("agents", self.agents, 1, 5000)
         check_range("density", self.density, 0, 10)
         check_range("radius", self.radius, 0, 1, open_low=True)
@@ -211,14 +224,22 @@ def simulate(knobs: CrowdKnobs, seeds: list[np.random.SeedSequence]) -> list[np.
         max_speed=2 * knobs.speed,
         noise_decay=decay,
         noise_kick=knobs.noise * math.sqrt(1 - decay**2),
+        kind=knobs.controller,
+        horizon=knobs.horizon,
     )
+    if knobs.start == "moving":  # at the preferred speed, straight for the goal
+        heading = goal - start
+        initial = heading * (speed / np.maximum(np.linalg.norm(heading, axis=1), 1e-9))[:, None]
+    else:
+        initial = np.zeros_like(start)
 
     space = pymunk.Space()
     space.collision_slop = min(0.01, 0.05 * knobs.radius)  # the default 0.1 is for pixels
     space.use_spatial_hash(4 * knobs.radius, 4 * len(start))  # 3x faster than the default tree
-    for p in start:
+    for p, v in zip(start, initial, strict=True):
         body = pymunk.Body(1.0, float("inf"))
         body.position = tuple(p)
+        body.velocity = tuple(v)
         shape = pymunk.Circle(body, knobs.radius)
         shape.friction = 0.0
         space.add(body, shape)

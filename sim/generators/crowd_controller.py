@@ -1,11 +1,13 @@
 """The crowd controller: one compiled pass per control step that steers every agent.
 
-Each agent relaxes towards its preferred velocity (towards its goal, perturbed by
-Ornstein-Uhlenbeck behavioural noise), is pushed by the time-to-collision power law of
-Karamouzas, Skinner and Guy (PRL 2014) computed for the disc radii, and is then slowed by
-speculative contacts so that no pair closes past contact within the next step. Neighbours come
-from a uniform cell grid per scene. The kernels are compiled with Numba because this per-pair work
-is the generator's inner loop: written as numpy array calls it cost four times Chipmunk's step.
+Each agent has a preferred velocity (towards its goal, perturbed by Ornstein-Uhlenbeck
+behavioural noise). The ``ttc`` controller relaxes towards it and adds the time-to-collision
+power law of Karamouzas, Skinner and Guy (PRL 2014) computed for the disc radii; the ``orca``
+controller takes the velocity closest to it that ORCA allows (``sim.generators.orca``, as RVO2).
+The ``ttc`` velocities are then slowed by speculative contacts so that no pair closes past contact
+within the next step. Neighbours come from a uniform cell grid per scene (ORCA's from a k-d tree,
+as RVO2's). The kernels are compiled with Numba because this per-pair work is the generator's
+inner loop: written as numpy array calls it cost four times Chipmunk's step.
 """
 
 from __future__ import annotations
@@ -15,6 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
+from scipy.spatial import cKDTree
+
+from sim.generators.orca import orca_velocities
 
 # Karamouzas et al. 2014 values, metres and seconds.
 RELAXATION = 0.5  # s, time to reach the preferred velocity
@@ -26,7 +31,10 @@ GRAZE = 0.05  # m: avoidance aims this far inside the contact distance, so agent
 # as ORCA agents do (the paper data has minimum separation exactly 2r); Pymunk holds the contact
 SLOW_DOWN = 0.5  # m from the goal within which agents slow to a stop
 CONTACT_SWEEPS = 4  # Gauss-Seidel sweeps over the speculative contacts
+HOLD_SWEEPS = 32  # and at most over ORCA's pairs (a dense jam needs many; most steps need none)
 MAX_CELLS = 256  # per axis and scene; cells grow beyond the sensing range past this
+ORCA_RANGE = 10.0  # m, RVO2's neighbour distance in the TrajNet++ ORCA settings
+ORCA_NEIGHBOURS = 10  # RVO2's maximum number of neighbours there
 NEAR_PER_AGENT = 8  # room for this many pairs close to contact per agent, else a second pass
 
 
@@ -41,6 +49,8 @@ class Controller:
     max_speed: float  # m/s
     noise_decay: float  # OU: factor on the noise velocity per step
     noise_kick: float  # OU: scale of the standard normal increment per step
+    kind: str = "ttc"  # "ttc" (time-to-collision forces) or "orca" (velocity obstacles)
+    horizon: float = 2.0  # s, ORCA's time horizon
 
     def steer(self, state, goal, speed, noise, kicks) -> np.ndarray:
         """Accelerations (per unit mass) that take every agent to its steered velocity in one
@@ -48,12 +58,26 @@ class Controller:
         in place by the standard normal ``kicks``."""
         # Plain scalars, not this object: Numba dispatches on a record type far more slowly.
         constants = self.contact, self.dt, self.max_speed, self.noise_decay, self.noise_kick
-        return _steer(state, goal, speed, noise, kicks, self.scene_size, *constants)
+        if self.kind == "ttc":
+            return _steer(state, goal, speed, noise, kicks, self.scene_size, *constants)
+        neighbours = self.orca_neighbours(state)
+        return _steer_orca(
+            state, goal, speed, noise, kicks, neighbours, self.scene_size, *constants, self.horizon
+        )
+
+    def orca_neighbours(self, state: np.ndarray) -> np.ndarray:
+        """Each agent's ``ORCA_NEIGHBOURS`` nearest others within ``ORCA_RANGE`` where this step
+        takes them, nearest first, as RVO2 picks them (padding: ``len(state)``). Scenes lie
+        farther apart than that range, so no agent sees another scene."""
+        ahead = state[:, :2] + self.dt * state[:, 2:]
+        k = min(ORCA_NEIGHBOURS + 1, len(state))
+        _, index = cKDTree(ahead).query(ahead, k=k, distance_upper_bound=ORCA_RANGE)
+        return index.reshape(len(state), k)
 
 
 @njit(cache=True)
 def _steer(state, goal, speed, noise, kicks, scene_size, contact, dt, max_speed, decay, kick):
-    """``Controller.steer``, compiled."""
+    """``Controller.steer`` with the time-to-collision controller, compiled."""
     # Pairs that can touch by the end of the next step: contact plus two steps of closing.
     reach = contact + 4 * max_speed * dt
     near = np.empty((NEAR_PER_AGENT * len(state), 2), np.int64)
@@ -61,20 +85,75 @@ def _steer(state, goal, speed, noise, kicks, scene_size, contact, dt, max_speed,
     aim = max(contact - GRAZE, contact / 2)
     count = _visit_pairs(state, scene_size, SENSING + contact, reach, near, accel, aim)
     near = near[:count] if count <= len(near) else neighbour_pairs(state, scene_size, reach)
+    preferred = _preferred(state, goal, speed, noise, kicks, decay, kick)
     velocity = np.empty((len(state), 2))
+    for i in range(len(state)):
+        velocity[i, 0] = state[i, 2] + dt * (
+            (preferred[i, 0] - state[i, 2]) / RELAXATION + accel[i, 0]
+        )
+        velocity[i, 1] = state[i, 3] + dt * (
+            (preferred[i, 1] - state[i, 3]) / RELAXATION + accel[i, 1]
+        )
+        top = math.sqrt(velocity[i, 0] ** 2 + velocity[i, 1] ** 2)
+        if top > max_speed:
+            velocity[i] *= max_speed / top
+    speculative_contacts(state, velocity, near, contact, dt)
+    return _accelerations(state, velocity, dt)
+
+
+@njit(cache=True)
+def _steer_orca(
+    state,
+    goal,
+    speed,
+    noise,
+    kicks,
+    neighbours,
+    scene_size,
+    contact,
+    dt,
+    max_speed,
+    decay,
+    kick,
+    horizon,
+):
+    """``Controller.steer`` with ORCA, compiled. ORCA sees each agent where its current velocity
+    takes it within this step, because Chipmunk moves a body before it applies the force set now:
+    the chosen velocity starts to act from there, as in RVO2. Where ORCA's program has no
+    solution (dense crowds), ``hold_apart`` keeps the pairs it would leave overlapping apart."""
+    preferred = _preferred(state, goal, speed, noise, kicks, decay, kick)
+    limit = np.empty(len(state))
+    for i in range(len(state)):
+        wish = math.sqrt(preferred[i, 0] ** 2 + preferred[i, 1] ** 2)
+        limit[i] = min(max_speed, max(speed[i], wish))  # never faster than the agent wishes
+    ahead = state.copy()
+    ahead[:, :2] += dt * state[:, 2:]
+    velocity = orca_velocities(ahead, preferred, limit, neighbours, contact, horizon, dt)
+    near = neighbour_pairs(ahead, scene_size, contact + 2 * max_speed * dt)
+    hold_apart(ahead, velocity, near, contact, dt)
+    return _accelerations(state, velocity, dt)
+
+
+@njit(cache=True)
+def _preferred(state, goal, speed, noise, kicks, decay, kick) -> np.ndarray:
+    """Preferred velocities: towards the goal at the agent's speed (slowing within
+    ``SLOW_DOWN`` of it) plus its OU noise, which the standard normal ``kicks`` advance in place."""
+    preferred = np.empty((len(state), 2))
     for i in range(len(state)):
         noise[i, 0] = decay * noise[i, 0] + kick * kicks[i, 0]
         noise[i, 1] = decay * noise[i, 1] + kick * kicks[i, 1]
         dx, dy = goal[i, 0] - state[i, 0], goal[i, 1] - state[i, 1]
         distance = math.sqrt(dx * dx + dy * dy)
         scale = speed[i] / max(distance, 1e-9) * min(1.0, distance / SLOW_DOWN)
-        preferred_x, preferred_y = dx * scale + noise[i, 0], dy * scale + noise[i, 1]
-        velocity[i, 0] = state[i, 2] + dt * ((preferred_x - state[i, 2]) / RELAXATION + accel[i, 0])
-        velocity[i, 1] = state[i, 3] + dt * ((preferred_y - state[i, 3]) / RELAXATION + accel[i, 1])
-        top = math.sqrt(velocity[i, 0] ** 2 + velocity[i, 1] ** 2)
-        if top > max_speed:
-            velocity[i] *= max_speed / top
-    speculative_contacts(state, velocity, near, contact, dt)
+        preferred[i, 0], preferred[i, 1] = dx * scale + noise[i, 0], dy * scale + noise[i, 1]
+    return preferred
+
+
+@njit(cache=True)
+def _accelerations(state, velocity, dt) -> np.ndarray:
+    """Accelerations that take every agent from its velocity in ``state`` to ``velocity`` in
+    one step."""
+    accel = np.empty((len(state), 2))
     for i in range(len(state)):
         accel[i, 0] = (velocity[i, 0] - state[i, 2]) / dt
         accel[i, 1] = (velocity[i, 1] - state[i, 3]) / dt
@@ -181,6 +260,34 @@ def _avoid(state: np.ndarray, accel: np.ndarray, i: int, j: int, aim: float) -> 
     accel[i, 1] += f1
     accel[j, 0] -= f0
     accel[j, 1] -= f1
+
+
+@njit(cache=True)
+def hold_apart(ahead, velocity, pairs, contact, dt) -> None:
+    """Change velocities, in place, so that no pair ends the step from ``ahead`` closer than
+    ``contact``: each agent of a pair takes half of the missing distance, in Gauss-Seidel sweeps.
+
+    Unlike speculative contacts, which bound the approach speed along the pair's current
+    direction, this looks at where the step ends, so pairs that pass each other at exactly
+    contact distance (as ORCA lets them) keep their velocities.
+    """
+    for _ in range(HOLD_SWEEPS):
+        moved = False
+        for p in range(len(pairs)):
+            i, j = pairs[p, 0], pairs[p, 1]
+            x0 = ahead[j, 0] + dt * velocity[j, 0] - ahead[i, 0] - dt * velocity[i, 0]
+            x1 = ahead[j, 1] + dt * velocity[j, 1] - ahead[i, 1] - dt * velocity[i, 1]
+            distance = math.sqrt(x0 * x0 + x1 * x1)
+            missing = contact - distance
+            if missing > 1e-9 * contact and distance > 0.0:
+                push = 0.5 * missing / (dt * distance)
+                velocity[i, 0] -= push * x0
+                velocity[i, 1] -= push * x1
+                velocity[j, 0] += push * x0
+                velocity[j, 1] += push * x1
+                moved = True
+        if not moved:
+            return
 
 
 @njit(cache=True)

@@ -1,0 +1,374 @@
+"""``python -m sim.fidelity``: how closely a generated family resembles a reference family.
+
+The reference is any family: RVO2's scenes (``orca_radius``), or a user's own recordings through
+a ``files`` family. Domains pair by position (the first of ``--scenario`` with the first of
+``--reference``, and so on). Per pair the report gives
+
+- the realised statistics side by side and their relative difference (within ``TOLERANCE``
+  counts as matched): minimum separation, median closest approach, mean speed, heading change per
+  frame and speed over the first step;
+- the distance between the per-scene distributions of closest approach, speed, heading change
+  and first-step speed (1-Wasserstein, in the quantity's units), and their histograms;
+- transfer: a model trained on each domain alone (``--method``, default fine-tuning) tested on
+  every domain of both families, beside constant velocity. The telling ratio is the error of the
+  generated-trained model on the reference over that of the reference-trained one.
+
+It writes ``fidelity.json``, ``fidelity.md`` and ``fidelity.png`` to ``--out``.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from scipy.stats import wasserstein_distance
+
+from c2inet.errors import InputError
+from c2inet.files import writable_folder, write_atomic, write_text_atomic
+from c2inet.trainer import ContinualTrainer, Task, evaluate
+from sim.cli import add_threads, add_workers, parse, parser
+from sim.curriculum import make_tasks
+from sim.data import Domain
+from sim.experiment import ExperimentConfig, parse_settings
+from sim.scenario import parse_scenario
+from sim.stats import PROFILES, realised_summary, scene_profiles
+from viz.cli import bounded_int, guarded
+
+TOLERANCE = 0.10  # relative difference of a statistic that still counts as matched
+TRANSFER_TARGET = 1.2  # generated-trained over reference-trained error on the reference
+SIDES = ("generated", "reference")
+
+
+def compare_statistics(generated: Domain, reference: Domain) -> dict[str, Any]:
+    """Realised statistics of two domains (all splits), their relative differences, and the
+    distances and histograms of their per-scene distributions."""
+    stats, profiles = {}, {}
+    for side, domain in zip(SIDES, (generated, reference), strict=True):
+        scenes = [scene for split in domain.scenes.values() for scene in split]
+        stats[side] = realised_summary(scenes, domain.dt)
+        profiles[side] = scene_profiles(scenes, domain.dt)
+    relative = {
+        name: relative_difference(stats["generated"][name], value)
+        for name, value in stats["reference"].items()
+    }
+    distances, histograms = {}, {}
+    for name in PROFILES:
+        a, b = (profiles[side][name] for side in SIDES)
+        a, b = a[np.isfinite(a)], b[np.isfinite(b)]
+        if not (a.size and b.size):
+            distances[name], histograms[name] = None, None
+            continue
+        distances[name] = float(wasserstein_distance(a, b))
+        edges = np.histogram_bin_edges(np.concatenate([a, b]), bins=30)
+        histograms[name] = {
+            "edges": edges.tolist(),
+            "generated": np.histogram(a, edges)[0].tolist(),
+            "reference": np.histogram(b, edges)[0].tolist(),
+        }
+    return {
+        **stats,
+        "relative": relative,
+        "matched": all(abs(r) <= TOLERANCE for r in relative.values()),
+        "wasserstein": distances,
+        "histograms": histograms,
+    }
+
+
+def relative_difference(value: float, reference: float) -> float:
+    """(value - reference) / |reference|; 0 when both are 0."""
+    if reference == 0:
+        return 0.0 if value == 0 else float("inf")
+    return (value - reference) / abs(reference)
+
+
+def transfer_matrix(config: ExperimentConfig, method: str, tasks: list[Task]) -> dict[str, Any]:
+    """ADE and FDE (best of K, metres) of a model trained on each task alone and tested on every
+    task (rows: trained on; columns: tested on), the mean over ``config.seeds`` seeds, and
+    constant velocity's on every task."""
+    n = len(tasks)
+    ade, fde = np.zeros((config.seeds, n, n)), np.zeros((config.seeds, n, n))
+    for s in range(config.seeds):
+        train = replace(config.train_config(s), diagnostics=False, val_every=0)
+        for i, task in enumerate(tasks):
+            trainer = ContinualTrainer(config.method(method), [task], train)
+            trainer.run()
+            for j, other in enumerate(tasks):
+                scores = evaluate(trainer.model, other.test, train.k, train.seed + j)
+                ade[s, i, j], fde[s, i, j] = scores["ade"], scores["fde"]
+    cv = config.method("cv").build_model()
+    baseline = [evaluate(cv, t.test, config.k, config.seed + j) for j, t in enumerate(tasks)]
+    return {
+        "tasks": [t.name for t in tasks],
+        "ade": ade.mean(0).tolist(),
+        "ade_std": ade.std(0).tolist(),
+        "fde": fde.mean(0).tolist(),
+        "cv_ade": [b["ade"] for b in baseline],
+        "cv_fde": [b["fde"] for b in baseline],
+    }
+
+
+def pair_transfer(matrix: dict[str, Any], i: int, n: int) -> dict[str, float]:
+    """Pair ``i``'s cells of the transfer matrix (generated tasks first, then the reference's)."""
+    ade, cv = np.asarray(matrix["ade"]), matrix["cv_ade"]
+    g, r = i, n + i
+    return {
+        "generated_on_reference": float(ade[g, r]),
+        "reference_on_reference": float(ade[r, r]),
+        "ratio": float(ade[g, r] / ade[r, r]),
+        "reference_on_generated": float(ade[r, g]),
+        "generated_on_generated": float(ade[g, g]),
+        "reverse_ratio": float(ade[r, g] / ade[g, g]),
+        "cv_on_reference": float(cv[r]),
+        "cv_on_generated": float(cv[g]),
+    }
+
+
+def fidelity_report(
+    scenario: str,
+    reference: str,
+    config: ExperimentConfig,
+    method: str = "finetune",
+    transfer: bool = True,
+    cache: Path = Path(".cache/domains"),
+    workers: int = 1,
+) -> dict[str, Any]:
+    """The fidelity report of ``scenario`` against ``reference`` as a dictionary (see the
+    module docstring); ``config`` gives the training options of the transfer runs."""
+    extra = list(config.scenarios_dir)
+    data = config.settings.get("data")
+    generated_specs = parse_scenario(scenario, extra, data)
+    reference_specs = parse_scenario(reference, extra)  # --set data.* shapes the generated side
+    if len(generated_specs) != len(reference_specs):
+        raise InputError(
+            f"--reference {reference!r} has {len(reference_specs)} domains and --scenario "
+            f"{scenario!r} {len(generated_specs)}: they pair by position, so give as many"
+        )
+    specs = generated_specs + reference_specs
+    tasks, domains = make_tasks(specs, config.seed, config.quick, cache, workers)
+    n = len(generated_specs)
+    pairs = []
+    for i in range(n):
+        names = [domains[i].name, domains[n + i].name]
+        pairs.append({"domains": names, **compare_statistics(domains[i], domains[n + i])})
+    report: dict[str, Any] = {
+        "scenario": scenario,
+        "reference": reference,
+        "tolerance": TOLERANCE,
+        "transfer_target": TRANSFER_TARGET,
+        "pairs": pairs,
+    }
+    if transfer:
+        matrix = transfer_matrix(config, method, tasks)
+        for i, pair in enumerate(pairs):
+            pair["transfer"] = pair_transfer(matrix, i, n)
+        report["transfer"] = {
+            "method": method,
+            "epochs": config.epochs,
+            "k": config.k,
+            "seeds": config.seeds,
+            **matrix,
+        }
+    return report
+
+
+def _percent(value: float) -> str:
+    return f"{100 * value:+.1f}%" if np.isfinite(value) else "inf"
+
+
+def fidelity_markdown(report: dict[str, Any]) -> str:
+    """The report as Markdown tables, with a verdict line per criterion."""
+    pairs = report["pairs"]
+    names = list(pairs[0]["relative"])
+    lines = [
+        f"# Fidelity of {report['scenario']} against {report['reference']}",
+        "",
+        f"Realised statistics, generated / reference (relative difference; within "
+        f"{100 * report['tolerance']:.0f}% counts as matched).",
+        "",
+        "| pair | " + " | ".join(names) + " | matched |",
+        "|---" * (len(names) + 2) + "|",
+    ]
+    for p in pairs:
+        cells = [
+            f"{p['generated'][name]:.3f} / {p['reference'][name]:.3f} "
+            f"({_percent(p['relative'][name])})"
+            for name in names
+        ]
+        matched = "yes" if p["matched"] else "no"
+        lines.append(f"| {_pair_label(p)} | " + " | ".join(cells) + f" | {matched} |")
+    lines += [
+        "",
+        "Distance between per-scene distributions (1-Wasserstein, in the quantity's units).",
+        "",
+        "| pair | " + " | ".join(PROFILES) + " |",
+        "|---" * (len(PROFILES) + 1) + "|",
+    ]
+    for p in pairs:
+        cells = [_number(p["wasserstein"][name]) for name in PROFILES]
+        lines.append(f"| {_pair_label(p)} | " + " | ".join(cells) + " |")
+    matched = sum(p["matched"] for p in pairs)
+    lines += ["", f"Statistics matched in {matched} of {len(pairs)} pairs."]
+    if "transfer" in report:
+        t = report["transfer"]
+        lines += [
+            "",
+            f"Transfer: {t['method']} trained on one domain ({t['epochs']} epochs, "
+            f"{t['seeds']} seed(s)), ADE best of {t['k']} in metres; ratio = trained on the "
+            f"generated domain over trained on the reference, tested on the reference "
+            f"(target at most {report['transfer_target']}).",
+            "",
+            "| pair | gen on ref | ref on ref | ratio | ref on gen | gen on gen | reverse ratio "
+            "| CV on ref | CV on gen |",
+            "|---|---|---|---|---|---|---|---|---|",
+        ]
+        for p in pairs:
+            x = p["transfer"]
+            lines.append(
+                f"| {_pair_label(p)} | {x['generated_on_reference']:.3f} | "
+                f"{x['reference_on_reference']:.3f} | {x['ratio']:.2f} | "
+                f"{x['reference_on_generated']:.3f} | {x['generated_on_generated']:.3f} | "
+                f"{x['reverse_ratio']:.2f} | {x['cv_on_reference']:.3f} | "
+                f"{x['cv_on_generated']:.3f} |"
+            )
+        within = sum(p["transfer"]["ratio"] <= report["transfer_target"] for p in pairs)
+        lines += ["", f"Transfer ratio within the target in {within} of {len(pairs)} pairs."]
+    return "\n".join(lines) + "\n"
+
+
+def _pair_label(pair: dict[str, Any]) -> str:
+    return " ~ ".join(pair["domains"])
+
+
+def _number(value: float | None) -> str:
+    return "n/a" if value is None else f"{value:.4f}"
+
+
+def fidelity_figure(report: dict[str, Any], path: Path) -> None:
+    """Top: relative difference of each statistic per pair (the tolerance shaded), transfer
+    errors per pair, and the whole transfer matrix. Bottom: per-scene histograms of each
+    distribution, generated solid and reference dashed, one colour per pair."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    pairs = report["pairs"]
+    x = np.arange(len(pairs))
+    labels = [p["domains"][0].rsplit("_", 1)[-1] for p in pairs]
+    colours = plt.get_cmap("viridis")(np.linspace(0, 0.9, len(pairs)))
+    fig, axes = plt.subplots(2, 4, figsize=(18, 8))
+    ax = axes[0, 0]
+    ax.axhspan(-100 * report["tolerance"], 100 * report["tolerance"], color="0.9")
+    for name in pairs[0]["relative"]:
+        ax.plot(x, [100 * p["relative"][name] for p in pairs], "-o", label=name)
+    ax.set(xticks=x, xticklabels=labels, ylabel="generated vs reference (%)")
+    ax.set_title("realised statistics", fontsize=9)
+    ax.legend(fontsize=7)
+    ax = axes[0, 1]
+    if "transfer" in report:
+        for key, style, label in (
+            ("generated_on_reference", "-o", "trained on generated"),
+            ("reference_on_reference", "-s", "trained on reference"),
+            ("cv_on_reference", ":^", "constant velocity"),
+        ):
+            ax.plot(x, [p["transfer"][key] for p in pairs], style, label=label)
+        ax.set(xticks=x, xticklabels=labels, ylabel="ADE on the reference (m)")
+        ax.legend(fontsize=7)
+        ax = axes[0, 2]
+        matrix = np.asarray(report["transfer"]["ade"])
+        image = ax.imshow(matrix, cmap="magma_r")
+        ticks = [
+            t.rsplit("_", 1)[0][:12] + " " + t.rsplit("_", 1)[-1]
+            for t in report["transfer"]["tasks"]
+        ]
+        ax.set_xticks(range(len(ticks)), ticks, rotation=90, fontsize=6)
+        ax.set_yticks(range(len(ticks)), ticks, fontsize=6)
+        ax.set(xlabel="tested on", ylabel="trained on")
+        fig.colorbar(image, ax=ax, label="ADE (m)")
+    axes[0, 1].set_title("transfer to the reference", fontsize=9)
+    axes[0, 2].set_title("transfer matrix", fontsize=9)
+    axes[0, 3].axis("off")
+    for ax, name in zip(axes[1], PROFILES, strict=True):
+        for pair, colour in zip(pairs, colours, strict=True):
+            histogram = pair["histograms"][name]
+            if histogram is None:
+                continue
+            for side, style in zip(SIDES, ("-", "--"), strict=True):
+                ax.stairs(histogram[side], histogram["edges"], color=colour, linestyle=style)
+        ax.set_title(f"per-scene {name.replace('_', ' ')}", fontsize=9)
+        ax.set_ylabel("scenes")
+    fig.suptitle(f"{report['scenario']} against {report['reference']}", fontsize=10)
+    fig.tight_layout()
+    write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
+    plt.close(fig)
+
+
+def write_report(report: dict[str, Any], out: Path) -> None:
+    """``fidelity.json``, ``fidelity.md`` and ``fidelity.png`` in ``out``."""
+    writable_folder(out, "--out")
+    write_text_atomic(out / "fidelity.json", json.dumps(report, indent=1) + "\n")
+    write_text_atomic(out / "fidelity.md", fidelity_markdown(report))
+    fidelity_figure(report, out / "fidelity.png")
+
+
+@guarded
+def main(argv: list[str] | None = None) -> int:
+    examples = (
+        "  python -m sim.fidelity --scenario crowd_radius_0.1..0.6 "
+        "--reference orca_radius_0.1..0.6\n"
+        "  python -m sim.fidelity --scenario crowd_radius_0.3 --reference orca_radius_0.3 "
+        "--no-transfer"
+    )
+    p = parser("sim.fidelity", __doc__.splitlines()[0], examples)
+    p.add_argument("--reference", help="the family to compare with, e.g. orca_radius_0.1..0.6")
+    p.add_argument("--method", default="finetune", help="the method of the transfer runs")
+    p.add_argument("--no-transfer", action="store_true", help="statistics only (no training)")
+    p.add_argument("--epochs", type=bounded_int(0, 10_000), help="epochs (default 20, quick 2)")
+    p.add_argument("--seeds", type=bounded_int(1, 100), default=1, help="seeds per transfer run")
+    p.add_argument("--k", type=bounded_int(1, 1000), help="samples of best-of-K (default 20)")
+    p.add_argument("--quick", action="store_true", help="tiny sizes, for smoke tests")
+    p.add_argument("--set", action="append", default=[], metavar="SCOPE.KEY=VALUE")
+    p.add_argument("--cache", type=Path, default=Path(".cache/domains"), help="domain cache")
+    p.add_argument("--out", type=Path, default=Path("fidelity"), help="folder of the report")
+    add_workers(p)
+    add_threads(p)
+    args = parse(p, sys.argv[1:] if argv is None else argv)
+    if args is None:
+        return 0
+    if not args.reference:
+        p.error("the following arguments are required: --reference")
+    torch.set_num_threads(args.threads)
+    config = ExperimentConfig(
+        args.scenario,
+        methods=(args.method,),
+        seeds=args.seeds,
+        seed=args.seed,
+        epochs=args.epochs,
+        k=args.k,
+        quick=args.quick,
+        settings=parse_settings(args.set),
+        scenarios_dir=tuple(args.scenarios_dir),
+        record=False,
+    )
+    report = fidelity_report(
+        args.scenario,
+        args.reference,
+        config,
+        args.method,
+        not args.no_transfer,
+        args.cache,
+        args.workers,
+    )
+    write_report(report, args.out)
+    print(fidelity_markdown(report))
+    print(f"wrote {args.out}/fidelity.json, fidelity.md, fidelity.png", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
