@@ -51,6 +51,7 @@ class Controller:
     noise_kick: float  # OU: scale of the standard normal increment per step
     kind: str = "ttc"  # "ttc" (time-to-collision forces) or "orca" (velocity obstacles)
     horizon: float = 2.0  # s, ORCA's time horizon
+    lane: float = math.inf  # m: ORCA keeps centres this close to y = 0 (walls beyond)
 
     def steer(self, state, goal, speed, noise, kicks) -> np.ndarray:
         """Accelerations (per unit mass) that take every agent to its steered velocity in one
@@ -61,9 +62,8 @@ class Controller:
         if self.kind == "ttc":
             return _steer(state, goal, speed, noise, kicks, self.scene_size, *constants)
         neighbours = self.orca_neighbours(state)
-        return _steer_orca(
-            state, goal, speed, noise, kicks, neighbours, self.scene_size, *constants, self.horizon
-        )
+        orca = (*constants, self.horizon, self.lane)
+        return _steer_orca(state, goal, speed, noise, kicks, neighbours, self.scene_size, orca)
 
     def orca_neighbours(self, state: np.ndarray) -> np.ndarray:
         """Each agent's ``ORCA_NEIGHBOURS`` nearest others within ``ORCA_RANGE`` where this step
@@ -102,25 +102,13 @@ def _steer(state, goal, speed, noise, kicks, scene_size, contact, dt, max_speed,
 
 
 @njit(cache=True)
-def _steer_orca(
-    state,
-    goal,
-    speed,
-    noise,
-    kicks,
-    neighbours,
-    scene_size,
-    contact,
-    dt,
-    max_speed,
-    decay,
-    kick,
-    horizon,
-):
+def _steer_orca(state, goal, speed, noise, kicks, neighbours, scene_size, constants):
     """``Controller.steer`` with ORCA, compiled. ORCA sees each agent where its current velocity
     takes it within this step, because Chipmunk moves a body before it applies the force set now:
     the chosen velocity starts to act from there, as in RVO2. Where ORCA's program has no
-    solution (dense crowds), ``hold_apart`` keeps the pairs it would leave overlapping apart."""
+    solution (dense crowds), ``hold_apart`` keeps the pairs it would leave overlapping apart,
+    and it keeps agents off the corridor's walls, which ORCA does not see."""
+    contact, dt, max_speed, decay, kick, horizon, lane = constants
     preferred = _preferred(state, goal, speed, noise, kicks, decay, kick)
     limit = np.empty(len(state))
     for i in range(len(state)):
@@ -130,7 +118,7 @@ def _steer_orca(
     ahead[:, :2] += dt * state[:, 2:]
     velocity = orca_velocities(ahead, preferred, limit, neighbours, contact, horizon, dt)
     near = neighbour_pairs(ahead, scene_size, contact + 2 * max_speed * dt)
-    hold_apart(ahead, velocity, near, contact, dt)
+    hold_apart(ahead, velocity, near, contact, dt, lane)
     return _accelerations(state, velocity, dt)
 
 
@@ -263,9 +251,10 @@ def _avoid(state: np.ndarray, accel: np.ndarray, i: int, j: int, aim: float) -> 
 
 
 @njit(cache=True)
-def hold_apart(ahead, velocity, pairs, contact, dt) -> None:
+def hold_apart(ahead, velocity, pairs, contact, dt, lane) -> None:
     """Change velocities, in place, so that no pair ends the step from ``ahead`` closer than
-    ``contact``: each agent of a pair takes half of the missing distance, in Gauss-Seidel sweeps.
+    ``contact`` (each agent of a pair takes half of the missing distance) and no centre ends it
+    farther than ``lane`` from y = 0 (the corridor's walls), in Gauss-Seidel sweeps.
 
     Unlike speculative contacts, which bound the approach speed along the pair's current
     direction, this looks at where the step ends, so pairs that pass each other at exactly
@@ -285,6 +274,11 @@ def hold_apart(ahead, velocity, pairs, contact, dt) -> None:
                 velocity[i, 1] -= push * x1
                 velocity[j, 0] += push * x0
                 velocity[j, 1] += push * x1
+                moved = True
+        for i in range(len(ahead)):
+            y = ahead[i, 1] + dt * velocity[i, 1]
+            if abs(y) > lane:
+                velocity[i, 1] = (math.copysign(lane, y) - ahead[i, 1]) / dt
                 moved = True
         if not moved:
             return
