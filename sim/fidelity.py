@@ -292,7 +292,13 @@ def fidelity_figure(report: dict[str, Any], path: Path) -> None:
         fig.colorbar(image, ax=ax, label="ADE (m)")
     axes[0, 1].set_title("transfer to the reference", fontsize=9)
     axes[0, 2].set_title("transfer matrix", fontsize=9)
-    axes[0, 3].axis("off")
+    legend = axes[0, 3]  # the key to the histograms below
+    for label, colour in zip(labels, colours, strict=True):
+        legend.plot([], [], color=colour, label=f"pair {label}")
+    legend.plot([], [], "k-", label="generated")
+    legend.plot([], [], "k--", label="reference")
+    legend.legend(loc="center", fontsize=8, title="histograms below", title_fontsize=8)
+    legend.axis("off")
     for ax, name in zip(axes[1], PROFILES, strict=True):
         for pair, colour in zip(pairs, colours, strict=True):
             histogram = pair["histograms"][name]

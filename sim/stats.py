@@ -9,26 +9,37 @@ from sim.data import Scene
 
 MIN_STEP = 0.02  # m per frame below which an agent counts as standing (no heading)
 DENSE_AGENTS = 64  # up to this many agents a scene's pairs are taken all at once
+DENSE_PAIR_FRAMES = 1 << 21  # agents^2 x frames of one all-pairs block (bounds its memory)
 PROFILES = ("closest", "speed", "heading_change", "first_speed")  # per-scene distributions
 
 
 def motion_stats(scenes: list[Scene], dt: float) -> dict[str, float]:
     """Mean speed (m/s) and mean absolute heading change per frame (rad) over all agents."""
     speeds, turns = [], []
-    for scene in scenes:
-        step = np.diff(scene.positions, axis=0)  # (frames-1, agents, 2), NaN where absent
+    for positions in _runs(scenes):  # (scenes, frames, agents, 2), NaN where absent
+        step = np.diff(positions, axis=1)
         length = np.linalg.norm(step, axis=-1)
         speeds.append(length[np.isfinite(length)] / dt)
         heading = np.arctan2(step[..., 1], step[..., 0])
         moving = length > MIN_STEP
-        turn = np.abs(np.angle(np.exp(1j * np.diff(heading, axis=0))))
-        valid = moving[1:] & moving[:-1]
+        turn = np.abs(np.angle(np.exp(1j * np.diff(heading, axis=1))))
+        valid = moving[:, 1:] & moving[:, :-1]
         turns.append(turn[valid])
-    speeds, turns = np.concatenate(speeds), np.concatenate(turns)
+    speeds, turns = np.concatenate(speeds or [[]]), np.concatenate(turns or [[]])
     return {
         "mean_speed": float(speeds.mean()) if speeds.size else 0.0,
         "heading_change": float(turns.mean()) if turns.size else 0.0,
     }
+
+
+def _runs(scenes: list[Scene]):
+    """The scenes' positions stacked, one array per run of consecutive scenes of one shape, so
+    that thousands of small scenes cost a few array operations (and keep their order)."""
+    start = 0
+    for end in range(1, len(scenes) + 1):
+        if end == len(scenes) or scenes[end].positions.shape != scenes[start].positions.shape:
+            yield np.stack([scene.positions for scene in scenes[start:end]])
+            start = end
 
 
 def proximity_stats(scenes: list[Scene], contact: float | None = None) -> dict[str, float]:
@@ -39,12 +50,17 @@ def proximity_stats(scenes: list[Scene], contact: float | None = None) -> dict[s
     a k-d tree per frame.
     """
     smallest, overlaps = np.inf, 0
-    for scene in scenes:
-        if scene.positions.shape[1] <= DENSE_AGENTS:
-            low, count = _dense_pairs(scene.positions, contact)
-        else:
-            low, count = _tree_pairs(scene.positions, contact)
-        smallest, overlaps = min(smallest, low), overlaps + count
+    for positions in _runs(scenes):
+        if positions.shape[2] <= DENSE_AGENTS:
+            frames = positions.reshape(-1, *positions.shape[2:])
+            block = max(1, DENSE_PAIR_FRAMES // positions.shape[2] ** 2)
+            for first in range(0, len(frames), block):
+                low, count = _dense_pairs(frames[first : first + block], contact)
+                smallest, overlaps = min(smallest, low), overlaps + count
+            continue
+        for scene in positions:
+            low, count = _tree_pairs(scene, contact)
+            smallest, overlaps = min(smallest, low), overlaps + count
     out = {"min_separation": float(smallest) if np.isfinite(smallest) else 0.0}
     return out if contact is None else {**out, "overlaps": overlaps}
 
@@ -55,7 +71,9 @@ def _dense_pairs(positions: np.ndarray, contact: float | None) -> tuple[float, i
     if agents < 2:
         return np.inf, 0
     first, second = np.triu_indices(agents, k=1)
-    distance = np.linalg.norm(positions[:, first] - positions[:, second], axis=-1)  # (F, pairs)
+    dx = positions[:, first, 0] - positions[:, second, 0]  # (frames, pairs)
+    dy = positions[:, first, 1] - positions[:, second, 1]
+    distance = np.sqrt(dx * dx + dy * dy)  # as np.linalg.norm, without its overhead
     distance = distance[np.isfinite(distance)]
     if not distance.size:
         return np.inf, 0

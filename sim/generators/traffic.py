@@ -8,12 +8,13 @@ frames every ``stride`` frames, keeping the vehicles present in all 20 frames wi
 metres of the centre vehicle at the last observed frame, so long roads stay tractable. The split
 sizes of a traffic family count episodes; each gives several scenes.
 
-Episodes run in worker processes (``workers``); every episode has its own seed, so the result is
-the same for any number of workers.
+Episodes run in worker processes (``workers``), one pool shared by every domain the process
+generates; every episode has its own seed, so the result is the same for any number of workers.
 """
 
 from __future__ import annotations
 
+import atexit
 import multiprocessing
 import signal
 import warnings
@@ -229,13 +230,42 @@ def run_episodes(
     jobs = [(knobs, s) for s in seeds]
     if workers <= 1 or len(jobs) <= 1:
         return [_episode_job(j) for j in jobs]
-    context = multiprocessing.get_context("spawn")  # highway-env mutates class state: isolate it
-    # workers ignore Ctrl-C (the driver stops the run); queued episodes are dropped, not run
-    pool = ProcessPoolExecutor(workers, context, signal.signal, (signal.SIGINT, signal.SIG_IGN))
+    pool = shared_pool(workers)
     try:
         return list(pool.map(_episode_job, jobs))
-    finally:
+    except BaseException:  # Ctrl-C or a failed episode: drop the queued ones with the pool
+        close_pool()
+        raise
+
+
+_POOL: dict[int, ProcessPoolExecutor] = {}  # at most one, by its number of workers
+
+
+def shared_pool(workers: int) -> ProcessPoolExecutor:
+    """The process's pool of ``workers`` episode workers, started once and kept for every
+    later domain: starting a worker (a fresh interpreter importing highway-env) costs seconds,
+    as much as a domain's episodes on it."""
+    if workers not in _POOL:
+        close_pool()
+        context = multiprocessing.get_context("spawn")  # highway-env mutates class state
+        _POOL[workers] = ProcessPoolExecutor(workers, context, _start_worker)
+    return _POOL[workers]
+
+
+def close_pool() -> None:
+    """Stop the shared pool's workers, dropping the episodes still queued."""
+    for pool in _POOL.values():
         pool.shutdown(wait=True, cancel_futures=True)
+    _POOL.clear()
+
+
+atexit.register(close_pool)
+
+
+def _start_worker() -> None:
+    """Workers ignore Ctrl-C (the driver stops the run) and import highway-env up front."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _make_env(TrafficKnobs()).close()
 
 
 class TrafficGenerator(Generator):

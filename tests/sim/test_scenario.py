@@ -52,6 +52,15 @@ def test_name_valued_family_resolves_files():
     assert [Path(p).name for p in univ["test"]] == ["students001_val.txt", "students003_val.txt"]
 
 
+def test_numbered_names_take_ranges_and_lists():
+    ranged = parse_scenario("orca_radius_0.2..0.4")
+    assert [s.label for s in ranged] == ["0.2", "0.3", "0.4"]
+    assert Path(ranged[1].knobs()["train"][0]).name == "radius_0.3_train.txt"
+    assert [s.label for s in parse_scenario("orca_radius_0.6,0.1")] == ["0.6", "0.1"]
+    with pytest.raises(InputError, match="'0.7' is not a value of family 'orca_radius'"):
+        parse_scenario("orca_radius_0.5..0.7")
+
+
 def test_user_folder_adds_families(family_dir):
     assert names("tiny_noise_0.2", [family_dir]) == ["tiny_noise_0.2"]
 

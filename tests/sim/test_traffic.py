@@ -1,12 +1,21 @@
 """Traffic domains from highway-env: the exporter, realised density, workers, errors."""
 
+from dataclasses import asdict
+
 import numpy as np
 import pytest
 
 from c2inet.errors import InputError
 from sim.domains import build_domain
 from sim.families import SCENARIOS_DIR, Splits
-from sim.generators.traffic import TrafficKnobs, local_scenes, simulate_episode
+from sim.generators.traffic import (
+    TrafficKnobs,
+    close_pool,
+    local_scenes,
+    run_episodes,
+    shared_pool,
+    simulate_episode,
+)
 from sim.scenario import parse_scenario
 
 
@@ -73,6 +82,21 @@ def test_results_are_identical_for_any_number_of_workers(tmp_path):
         for a, b in zip(one.scenes[split], two.scenes[split], strict=True):
             np.testing.assert_array_equal(a.positions, b.positions)
     assert one.stats == two.stats
+
+
+def test_one_worker_pool_serves_every_domain_and_stops_cleanly():
+    knobs = asdict(TrafficKnobs(vehicles=4, seconds=8.0, warmup=0.0))
+    seeds = [np.random.SeedSequence(7, spawn_key=(k,)) for k in range(3)]
+    first = run_episodes(knobs, seeds, workers=2)
+    pool = shared_pool(2)
+    workers = set(pool._processes)  # the worker processes' ids
+    again = run_episodes(knobs, seeds, workers=2)  # the next domain: the same processes
+    assert shared_pool(2) is pool and set(pool._processes) == workers and len(workers) == 2
+    for a, b in zip(first, again, strict=True):
+        np.testing.assert_array_equal(a.positions, b.positions)
+    close_pool()
+    assert shared_pool(2) is not pool  # a closed pool is replaced, never reused
+    close_pool()
 
 
 def test_observation_noise_moves_positions_not_behaviour():

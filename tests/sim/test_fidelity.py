@@ -1,0 +1,92 @@
+"""The fidelity report passes a faithful family, fails an unfaithful one, and trains for real."""
+
+import json
+
+import numpy as np
+import pytest
+
+from sim.domains import build_domain
+from sim.experiment import ExperimentConfig
+from sim.fidelity import (
+    compare_statistics,
+    fidelity_report,
+    main,
+    relative_difference,
+    write_report,
+)
+from sim.scenario import parse_scenario
+from sim.stats import realised_summary, scene_profiles
+
+
+def domains(scenario: str, data=None):
+    return [build_domain(spec, root_seed=0) for spec in parse_scenario(scenario, overrides=data)]
+
+
+def test_relative_difference():
+    assert relative_difference(1.1, 1.0) == pytest.approx(0.1)
+    assert relative_difference(0.9, -1.0) == pytest.approx(1.9)
+    assert relative_difference(0.0, 0.0) == 0.0
+    assert relative_difference(1.0, 0.0) == float("inf")
+
+
+def test_scene_profiles_measure_each_scene():
+    (domain,) = domains("orca_radius_0.3")
+    scenes = domain.scenes["test"]
+    profiles = scene_profiles(scenes, domain.dt)
+    assert all(len(v) == len(scenes) for v in profiles.values())
+    first = scenes[0].positions
+    closest = np.linalg.norm(first[:, 0] - first[:, 1], axis=1).min()
+    assert profiles["closest"][0] == pytest.approx(closest)
+    assert np.nanmin(profiles["closest"]) >= 0.6 - 1e-3  # RVO2 keeps 2r
+    assert realised_summary(scenes, domain.dt)["first_speed"] == pytest.approx(1.0, abs=1e-3)
+
+
+def test_statistics_pass_the_orca_stand_in_and_fail_the_old_crowd():
+    generated, reference = domains("crowd_radius_0.4+orca_radius_0.4")
+    faithful = compare_statistics(generated, reference)
+    assert faithful["matched"], faithful["relative"]
+    (old,) = domains("crowd_radius_0.4", {"controller": "ttc", "start": "rest"})
+    unfaithful = compare_statistics(old, reference)
+    assert not unfaithful["matched"]
+    assert unfaithful["relative"]["first_speed"] < -0.3  # it starts from rest
+    for name, distance in unfaithful["wasserstein"].items():  # every distribution moves away
+        assert distance > faithful["wasserstein"][name], name
+    histogram = faithful["histograms"]["speed"]
+    assert sum(histogram["generated"]) == sum(len(s) for s in generated.scenes.values())
+
+
+def test_transfer_report_trains_tests_and_writes(tmp_path):
+    scenario, reference = "crowd_radius_0.2,0.5", "orca_radius_0.2,0.5"
+    config = ExperimentConfig(scenario, methods=("finetune",), quick=True, record=False)
+    report = fidelity_report(scenario, reference, config, cache=tmp_path / "cache")
+    matrix = np.asarray(report["transfer"]["ade"])
+    assert matrix.shape == (4, 4) and np.all(np.isfinite(matrix)) and np.all(matrix > 0)
+    assert len(set(matrix.ravel().round(6))) > 4  # each model and test set its own number
+    cv = report["transfer"]["cv_ade"]
+    assert cv[1] > cv[0] and cv[3] > cv[2]  # larger radii: more avoidance, worse for CV
+    pair = report["pairs"][1]
+    assert pair["domains"] == ["crowd_radius_0.5", "orca_radius_0.5"]
+    assert pair["transfer"]["ratio"] == pytest.approx(matrix[1, 3] / matrix[3, 3])
+    write_report(report, tmp_path / "out")
+    written = json.loads((tmp_path / "out" / "fidelity.json").read_text())
+    assert written["transfer"]["ade"] == report["transfer"]["ade"]
+    assert "Transfer ratio within the target" in (tmp_path / "out" / "fidelity.md").read_text()
+    assert (tmp_path / "out" / "fidelity.png").stat().st_size > 10_000
+
+
+@pytest.mark.parametrize(
+    "argv,message",
+    [
+        (["--scenario", "crowd_radius_0.1,0.2", "--reference", "orca_radius_0.1"], "pair by"),
+        (["--scenario", "crowd_radius_0.1", "--reference", "orca_radius_0.9"], "not a value"),
+    ],
+)
+def test_bad_input_is_one_error_line_and_exit_code_2(tmp_path, capsys, argv, message):
+    assert main([*argv, "--out", str(tmp_path), "--no-transfer"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and message in err and err.count("\n") == 1
+
+
+def test_the_reference_is_required(capsys):
+    assert main(["--scenario", "crowd_radius_0.1"]) == 2
+    assert "required: --reference" in capsys.readouterr().err
