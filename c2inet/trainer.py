@@ -130,6 +130,27 @@ def evaluate_all(
     return scores
 
 
+def train_epoch(method: Method, ctx: TaskContext, data: Windows, cfg: TrainConfig) -> dict:
+    """One pass over ``data`` in shuffled batches, with the method's step hooks; returns the mean
+    of each loss part over the steps."""
+    totals: dict[str, float] = {}
+    steps = 0
+    for batch in batches(data, cfg.batch_scenes, ctx.rng):
+        ctx.batch = batch
+        ctx.loss, ctx.parts, ctx.output = ctx.model.loss(batch, cfg.k_train)
+        method.before_backward(ctx)
+        ctx.optimiser.zero_grad()
+        ctx.loss.backward()
+        method.after_backward(ctx)
+        ctx.optimiser.step()
+        method.after_step(ctx)
+        for key, value in ctx.parts.items():
+            totals[key] = totals.get(key, 0.0) + value
+        steps += 1
+    ctx.batch = ctx.output = ctx.loss = None
+    return {k: v / max(steps, 1) for k, v in totals.items()}
+
+
 class ContinualTrainer:
     """Runs one method through a curriculum and fills the task-by-task error matrices."""
 
@@ -250,27 +271,9 @@ class ContinualTrainer:
         for epoch in self.progress(
             range(cfg.epochs), desc=f"{method.name} {ctx.name}", leave=False
         ):
-            totals: dict[str, float] = {}
-            steps = 0
-            for batch in batches(data, cfg.batch_scenes, ctx.rng):
-                ctx.batch = batch
-                ctx.loss, ctx.parts, ctx.output = model.loss(batch, cfg.k_train)
-                method.before_backward(ctx)
-                ctx.optimiser.zero_grad()
-                ctx.loss.backward()
-                method.after_backward(ctx)
-                ctx.optimiser.step()
-                method.after_step(ctx)
-                for key, value in ctx.parts.items():
-                    totals[key] = totals.get(key, 0.0) + value
-                steps += 1
-            ctx.batch = ctx.output = ctx.loss = None
+            losses = train_epoch(method, ctx, data, cfg)
             method.after_epoch(ctx, epoch)
-            record = {
-                "task": ctx.index,
-                "epoch": epoch,
-                **{k: v / max(steps, 1) for k, v in totals.items()},
-            }
+            record = {"task": ctx.index, "epoch": epoch, **losses}
             if cfg.val_every and (epoch + 1) % cfg.val_every == 0:
                 for seen in self.tasks[: ctx.index + 1]:
                     if seen.val is not None:

@@ -31,13 +31,14 @@ from scipy.stats import wasserstein_distance
 from c2inet.errors import InputError
 from c2inet.files import writable_folder, write_atomic, write_text_atomic
 from c2inet.trainer import ContinualTrainer, Task, evaluate
-from sim.cli import add_threads, add_workers, parse, parser
+from sim.cli import parse, parser
 from sim.curriculum import make_tasks
 from sim.data import Domain
-from sim.experiment import ExperimentConfig, parse_settings
+from sim.experiment import ExperimentConfig
+from sim.run import add_learning_options, learning_config
 from sim.scenario import parse_scenario
 from sim.stats import PROFILES, realised_summary, scene_profiles
-from viz.cli import bounded_int, guarded
+from viz.cli import guarded
 
 TOLERANCE = 0.10  # relative difference of a statistic that still counts as matched
 TRANSFER_TARGET = 1.2  # generated-trained over reference-trained error on the reference
@@ -334,33 +335,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--reference", help="the family to compare with, e.g. orca_radius_0.1..0.6")
     p.add_argument("--method", default="finetune", help="the method of the transfer runs")
     p.add_argument("--no-transfer", action="store_true", help="statistics only (no training)")
-    p.add_argument("--epochs", type=bounded_int(0, 10_000), help="epochs (default 20, quick 2)")
-    p.add_argument("--seeds", type=bounded_int(1, 100), default=1, help="seeds per transfer run")
-    p.add_argument("--k", type=bounded_int(1, 1000), help="samples of best-of-K (default 20)")
-    p.add_argument("--quick", action="store_true", help="tiny sizes, for smoke tests")
-    p.add_argument("--set", action="append", default=[], metavar="SCOPE.KEY=VALUE")
-    p.add_argument("--cache", type=Path, default=Path(".cache/domains"), help="domain cache")
     p.add_argument("--out", type=Path, default=Path("fidelity"), help="folder of the report")
-    add_workers(p)
-    add_threads(p)
+    add_learning_options(p)
     args = parse(p, sys.argv[1:] if argv is None else argv)
     if args is None:
         return 0
     if not args.reference:
         p.error("the following arguments are required: --reference")
     torch.set_num_threads(args.threads)
-    config = ExperimentConfig(
-        args.scenario,
-        methods=(args.method,),
-        seeds=args.seeds,
-        seed=args.seed,
-        epochs=args.epochs,
-        k=args.k,
-        quick=args.quick,
-        settings=parse_settings(args.set),
-        scenarios_dir=tuple(args.scenarios_dir),
-        record=False,
-    )
+    config = learning_config(args, (args.method,))
     report = fidelity_report(
         args.scenario,
         args.reference,

@@ -75,6 +75,40 @@ def add_experiment_options(p) -> None:
     )
 
 
+def add_learning_options(p, methods: str | None = None) -> None:
+    """The options of the commands that train in this process (``sim.fidelity``,
+    ``sim.drift``, ``sim.active``): what to train, and where the domains are cached.
+    ``methods``: the default of ``--methods`` (None: no such option)."""
+    if methods is not None:
+        p.add_argument("--methods", default=methods, help=f"comma-separated (default {methods})")
+    p.add_argument("--backbone", choices=sorted(BACKBONES), default="stgat")
+    p.add_argument("--epochs", type=bounded_int(0, 10_000), help="epochs (default 20, quick 2)")
+    p.add_argument("--seeds", type=bounded_int(1, 100), default=1, help="seeds per method")
+    p.add_argument("--k", type=bounded_int(1, 1000), help="samples of best-of-K (default 20)")
+    p.add_argument("--quick", action="store_true", help="tiny sizes, for smoke tests")
+    p.add_argument("--set", action="append", default=[], metavar="SCOPE.KEY=VALUE")
+    p.add_argument("--cache", type=Path, default=Path(".cache/domains"), help="domain cache")
+    add_workers(p)
+    add_threads(p)
+
+
+def learning_config(args, methods: tuple[str, ...], scenario: str | None = None):
+    """The ``ExperimentConfig`` of :func:`add_learning_options`' options (no recording)."""
+    return ExperimentConfig(
+        scenario or args.scenario,
+        methods=methods,
+        seeds=args.seeds,
+        seed=args.seed,
+        epochs=args.epochs,
+        k=args.k,
+        backbone=args.backbone,
+        quick=args.quick,
+        settings=parse_settings(args.set),
+        scenarios_dir=tuple(args.scenarios_dir),
+        record=False,
+    )
+
+
 def experiment_options(args) -> dict:
     """The fields of ``ExperimentConfig`` given by :func:`add_experiment_options`' options."""
     return {

@@ -24,6 +24,7 @@ def test_a_wheel_in_a_fresh_environment_generates_domains_anywhere(tmp_path, mon
     names = set(zipfile.ZipFile(wheel).namelist())
     assert "sim/scenarios/crowd_noise.toml" in names
     assert "sim/scenarios/data/eth_ucy/hotel/val/biwi_eth_val.txt" in names
+    assert "sim/scenarios/data/orca/radius_0.3_test.txt" in names
     assert any(n.endswith("LICENSE") for n in names)
     venv = tmp_path / "venv"
     run(sys.executable, "-m", "venv", venv)

@@ -52,6 +52,9 @@ class TaskContext:
         self.parts[name] = value.item()
 
 
+TASK_HOOKS = ("before_task", "after_task")
+
+
 @dataclass(frozen=True)
 class NoOptions:
     """Methods without options."""
@@ -78,6 +81,12 @@ class Method:
 
     def build_model(self) -> torch.nn.Module:
         return Predictor(self.model_config)
+
+    @classmethod
+    def needs_boundaries(cls) -> bool:
+        """Whether the method's mechanism lives in the task hooks (``before_task``,
+        ``after_task``), so that a stream without task boundaries leaves it idle."""
+        return any(getattr(cls, hook) is not getattr(Method, hook) for hook in TASK_HOOKS)
 
     def before_task(self, ctx: TaskContext) -> None:
         """Before the task's first epoch."""

@@ -295,7 +295,7 @@ class CrowdGenerator(Generator):
     def rollout(self, knobs: dict[str, Any], seed, frames: int) -> Scene:
         options = CrowdKnobs(**{**knobs, "frames": max(frames, knobs["frames"])})
         (positions,) = simulate(options, [seed])
-        return Scene(positions, np.arange(options.num_agents, dtype=np.int64))
+        return Scene(observed(positions, options, seed), np.arange(options.num_agents))
 
     @classmethod
     def memory_bytes(cls, knobs: dict[str, Any], splits) -> int:
@@ -314,9 +314,7 @@ class CrowdGenerator(Generator):
             for first in range(0, count, BATCH_SCENES):
                 batch = scene_seeds[first : first + BATCH_SCENES]
                 for scene_seed, positions in zip(batch, simulate(options, batch), strict=True):
-                    if options.obs_noise > 0:
-                        rng = np.random.default_rng(scene_seed.spawn(1)[0])
-                        positions = positions + rng.normal(0, options.obs_noise, positions.shape)
+                    positions = observed(positions, options, scene_seed)
                     out.append(Scene(positions, np.arange(options.num_agents, dtype=np.int64)))
             scenes[split] = out
         everything = [s for split in SPLITS for s in scenes[split]]
@@ -324,6 +322,14 @@ class CrowdGenerator(Generator):
         stats.update(proximity_stats(everything, 2 * options.radius * (1 - OVERLAP_TOLERANCE)))
         stats["density"] = realised_density(everything, options)
         return Domain(name, family, self.name, knobs, options.dt, scenes, stats)
+
+
+def observed(positions: np.ndarray, knobs: CrowdKnobs, seed) -> np.ndarray:
+    """The recorded positions: with ``obs_noise``, Gaussian noise from the scene's own seed."""
+    if knobs.obs_noise == 0:
+        return positions
+    rng = np.random.default_rng(seed.spawn(1)[0])
+    return positions + rng.normal(0, knobs.obs_noise, positions.shape)
 
 
 def realised_density(scenes: list[Scene], knobs: CrowdKnobs) -> float:

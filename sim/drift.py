@@ -1,0 +1,291 @@
+"""``python -m sim.drift``: a knob drifting within one stream, learnt without task boundaries.
+
+``--scenario crowd_noise_0.1..0.6`` gives the family, the drift (from the first value to the
+last, linearly over ``--scenes`` scenes, each simulated at its own value) and the probe bins (a
+fixed test set at each value). The stream arrives in ``--chunks`` chunks; after each, every
+method is evaluated on every probe: the error-over-time matrix. Task hooks run only at the
+boundaries ``--boundaries`` gives: ``detect`` (a shift detector on the data,
+``c2inet.stream.ShiftDetector``), ``none``, or ``chunks`` (every chunk, the oracle of a
+task-based protocol). Methods whose mechanism lives in those hooks are marked as needing them.
+
+Per method: the final and the anytime (mean over time) probe error, and forgetting without task
+boundaries: per probe, its final error minus the lowest it had once the stream had reached its
+value. It writes ``drift.json``, ``drift.md`` and ``drift.png`` to ``--out``.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from c2inet.data import Windows
+from c2inet.errors import InputError
+from c2inet.files import writable_folder, write_atomic, write_text_atomic
+from c2inet.options import check_range
+from c2inet.stream import ShiftDetector, StreamLearner
+from sim.cli import parse, parser
+from sim.curriculum import make_tasks
+from sim.data import cut_windows
+from sim.domains import domain_seed
+from sim.experiment import ExperimentConfig
+from sim.generators import Generator, child_seed, get_generator
+from sim.run import add_learning_options, learning_config
+from sim.scenario import DomainSpec
+from viz.cli import bounded_float, bounded_int, guarded
+
+BOUNDARIES = ("detect", "none", "chunks")
+DEFAULT_METHODS = "finetune,ewc,derpp,c2inet-online"
+
+
+@dataclass(frozen=True)
+class DriftOptions:
+    """The stream: its length in scenes, how many chunks it arrives in, where boundaries are."""
+
+    scenes: int = 600
+    chunks: int = 12
+    boundaries: str = "detect"
+    threshold: float = 0.15  # the detector's relative change of a feature
+
+    def __post_init__(self):
+        check_range("scenes", self.scenes, 2, 100_000)
+        check_range("chunks", self.chunks, 1, self.scenes)
+        check_range("threshold", self.threshold, 0, 10, open_low=True)
+        if self.boundaries not in BOUNDARIES:
+            raise InputError(
+                f"boundaries={self.boundaries!r} is unknown (known: {', '.join(BOUNDARIES)})"
+            )
+
+
+def drift_specs(config: ExperimentConfig) -> list[DomainSpec]:
+    """The probe domains: one numeric family, at least two values."""
+    specs = config.specs()
+    families = {spec.family.name for spec in specs}
+    if len(families) != 1 or len(specs) < 2 or specs[0].family.values:
+        raise InputError(
+            f"scenario {config.scenario!r}: a drift needs one simulated family with two values "
+            "or more, e.g. crowd_noise_0.1..0.6"
+        )
+    if get_generator(specs[0].family.generator).rollout is Generator.rollout:
+        raise InputError(f"scenario {config.scenario!r}: family cannot simulate single scenes")
+    return specs
+
+
+def drift_stream(
+    specs: list[DomainSpec], options: DriftOptions, seed: int
+) -> tuple[list[Windows], np.ndarray]:
+    """The stream's chunks of windows, in order, and the knob value at each chunk's middle.
+
+    Scene ``i`` is simulated at ``start + (end - start) * i / (scenes - 1)`` from its own child
+    seed, so the stream is the same whatever the chunking.
+    """
+    family, start, end = specs[0].family, specs[0].value, specs[-1].value
+    values = np.linspace(start, end, options.scenes)
+    generator = get_generator(family.generator)()
+    root = domain_seed(seed, replace(specs[0], label="drift"))
+    windows = []
+    for i, value in enumerate(values):
+        scene = generator.rollout(family.knobs_for(float(value)), child_seed(root, i), 20)
+        windows.append(cut_windows(scene))
+    bounds = np.linspace(0, options.scenes, options.chunks + 1).round().astype(int)
+    chunks = [
+        Windows.concat([w for w in windows[a:b] if w is not None])
+        for a, b in zip(bounds[:-1], bounds[1:], strict=True)
+    ]
+    middles = np.array(
+        [values[(a + b - 1) // 2] for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+    )
+    return chunks, middles
+
+
+def stream_run(config: ExperimentConfig, method: str, seed_index: int, chunks, probes, options):
+    """One method through the stream: the (chunks x probes) ADE and FDE, and the boundaries the
+    detector found and the method was given."""
+    train = replace(config.train_config(seed_index), diagnostics=False, val_every=0)
+    learner = StreamLearner(config.method(method), train)
+    detector = ShiftDetector(options.threshold)
+    ade, fde, found = np.zeros((len(chunks), len(probes))), np.zeros((len(chunks), len(probes))), []
+    for c, chunk in enumerate(chunks):
+        if detector(chunk):
+            found.append(c)
+        boundary = {"detect": c in found, "none": False, "chunks": c > 0}[options.boundaries]
+        learner.learn(chunk, boundary)
+        for j, probe in enumerate(probes):
+            scores = learner.evaluate(probe, train.seed + j)
+            ade[c, j], fde[c, j] = scores["ade"], scores["fde"]
+    return ade, fde, found, learner.boundaries
+
+
+def forgetting(errors: np.ndarray, middles: np.ndarray, probe_values: list[float]) -> np.ndarray:
+    """Per probe: final error minus the lowest error from the chunk whose middle first reached
+    the probe's value (the stream has seen that regime) to the end."""
+    out = []
+    for j, value in enumerate(probe_values):
+        reached = np.flatnonzero(middles >= value - 1e-9)
+        first = reached[0] if len(reached) else len(middles) - 1
+        out.append(errors[-1, j] - errors[first:, j].min())
+    return np.array(out)
+
+
+def run_drift(
+    config: ExperimentConfig,
+    options: DriftOptions,
+    cache: Path = Path(".cache/domains"),
+    workers: int = 1,
+) -> dict[str, Any]:
+    """Every method of ``config`` through the drift stream; the report as a dictionary."""
+    specs = drift_specs(config)
+    if config.quick:
+        options = replace(options, scenes=min(options.scenes, 24), chunks=min(options.chunks, 3))
+    tasks, _ = make_tasks(specs, config.seed, config.quick, cache, workers)
+    probes = [task.test for task in tasks]
+    probe_values = [float(spec.value) for spec in specs]
+    chunks, middles = drift_stream(specs, options, config.seed)
+    methods = {}
+    for name in config.methods:
+        runs = [stream_run(config, name, s, chunks, probes, options) for s in range(config.seeds)]
+        ade = np.stack([r[0] for r in runs])
+        fde = np.stack([r[1] for r in runs])
+        lost = np.stack([forgetting(a, middles, probe_values) for a in ade])
+        methods[name] = {
+            "needs_boundaries": config.method(name).needs_boundaries(),
+            "ade": ade.mean(0).tolist(),
+            "ade_std": ade.std(0).tolist(),
+            "fde": fde.mean(0).tolist(),
+            "final_ade": float(ade[:, -1].mean()),
+            "final_ade_std": float(ade[:, -1].mean(1).std()),
+            "worst_final_ade": float(ade[:, -1].max(1).mean()),
+            "anytime_ade": float(ade.mean()),
+            "forgetting": lost.mean(0).tolist(),
+            "mean_forgetting": float(lost.mean()),
+            "detected": runs[0][2],
+            "given": runs[0][3],
+        }
+    return {
+        "scenario": config.scenario,
+        "family": specs[0].family.name,
+        "knob": specs[0].family.knob,
+        "probes": probe_values,
+        "chunk_values": middles.tolist(),
+        "scenes": options.scenes,
+        "chunks": options.chunks,
+        "boundaries": options.boundaries,
+        "threshold": options.threshold,
+        "epochs": config.epochs,
+        "seeds": config.seeds,
+        "k": config.k,
+        "methods": methods,
+    }
+
+
+def drift_markdown(report: dict[str, Any]) -> str:
+    """The report's summary table and each method's error-over-time matrix."""
+    lines = [
+        f"# Drift: {report['family']} {report['knob']} from {report['probes'][0]:g} to "
+        f"{report['probes'][-1]:g} over {report['scenes']} scenes",
+        "",
+        f"{report['chunks']} chunks, {report['epochs']} epochs each, {report['seeds']} seed(s); "
+        f"task boundaries: {report['boundaries']}. ADE best of {report['k']} on the probe sets "
+        f"(metres). Forgetting: a probe's final error minus its lowest once the stream had "
+        f"reached its value, averaged over probes.",
+        "",
+        "| method | needs boundaries | boundaries given at chunks | final ADE | worst probe | "
+        "anytime ADE | forgetting |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for name, m in report["methods"].items():
+        given = ", ".join(map(str, m["given"]))
+        lines.append(
+            f"| {name} | {'yes' if m['needs_boundaries'] else 'no'} | {given} | "
+            f"{m['final_ade']:.3f} ± {m['final_ade_std']:.3f} | {m['worst_final_ade']:.3f} | "
+            f"{m['anytime_ade']:.3f} | {m['mean_forgetting']:+.3f} |"
+        )
+    first = next(iter(report["methods"].values()))
+    lines += ["", f"The detector found shifts at chunks {first['detected']}.", ""]
+    for name, m in report["methods"].items():
+        lines += [f"## {name}: ADE after each chunk (rows) on each probe (columns)", ""]
+        lines.append("| chunk (knob) | " + " | ".join(f"{v:g}" for v in report["probes"]) + " |")
+        lines.append("|---" * (len(report["probes"]) + 1) + "|")
+        for c, (value, row) in enumerate(zip(report["chunk_values"], m["ade"], strict=True)):
+            mark = " *" if c in m["given"] and c > 0 else ""
+            cells = " | ".join(f"{x:.3f}" for x in row)
+            lines.append(f"| {c} ({value:.3f}){mark} | {cells} |")
+        lines.append("")
+    lines.append("`*`: a task boundary was given to the method before that chunk.")
+    return "\n".join(lines) + "\n"
+
+
+def drift_figure(report: dict[str, Any], path: Path) -> None:
+    """Left: mean probe ADE over the stream per method, boundaries marked. Right: each
+    method's error-over-time matrix."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    methods = report["methods"]
+    fig, axes = plt.subplots(1, 1 + len(methods), figsize=(5 + 3.6 * len(methods), 3.8))
+    values = report["chunk_values"]
+    ax = axes[0]
+    for name, m in methods.items():
+        line = ax.plot(values, np.mean(m["ade"], axis=1), "-o", ms=3, label=name)[0]
+        for c in m["given"][1:]:
+            ax.axvline(values[c], color=line.get_color(), alpha=0.25, lw=1)
+    ax.set(xlabel=f"{report['knob']} at the stream's position", ylabel="mean probe ADE (m)")
+    ax.set_title(f"boundaries: {report['boundaries']}", fontsize=9)
+    ax.legend(fontsize=7)
+    top = max(np.max(m["ade"]) for m in methods.values())
+    for ax, (name, m) in zip(axes[1:], methods.items(), strict=True):
+        image = ax.imshow(m["ade"], aspect="auto", cmap="magma_r", vmin=0, vmax=top)
+        ax.set_xticks(range(len(report["probes"])), [f"{v:g}" for v in report["probes"]])
+        ax.set_yticks(range(len(values)), [f"{v:.2f}" for v in values], fontsize=6)
+        ax.set(xlabel="probe", ylabel="after the chunk at")
+        ax.set_title(name, fontsize=9)
+    fig.colorbar(image, ax=axes[-1], label="ADE (m)")
+    fig.suptitle(f"drift of {report['family']}", fontsize=10)
+    fig.tight_layout()
+    write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
+    plt.close(fig)
+
+
+def write_drift(report: dict[str, Any], out: Path) -> None:
+    """``drift.json``, ``drift.md`` and ``drift.png`` in ``out``."""
+    writable_folder(out, "--out")
+    write_text_atomic(out / "drift.json", json.dumps(report, indent=1) + "\n")
+    write_text_atomic(out / "drift.md", drift_markdown(report))
+    drift_figure(report, out / "drift.png")
+
+
+@guarded
+def main(argv: list[str] | None = None) -> int:
+    examples = (
+        "  python -m sim.drift --scenario crowd_noise_0.1..0.6 --scenes 600 --chunks 12\n"
+        "  python -m sim.drift --scenario crowd_radius_0.1..0.6 --boundaries none --quick"
+    )
+    p = parser("sim.drift", __doc__.splitlines()[0], examples)
+    p.add_argument("--scenes", type=bounded_int(2, 100_000), default=600, help="stream length")
+    p.add_argument("--chunks", type=bounded_int(1, 100_000), default=12, help="chunks of it")
+    p.add_argument("--boundaries", choices=BOUNDARIES, default="detect")
+    p.add_argument("--threshold", type=bounded_float(1e-6, 10), default=0.15)
+    p.add_argument("--out", type=Path, default=Path("drift"), help="folder of the report")
+    add_learning_options(p, DEFAULT_METHODS)
+    args = parse(p, sys.argv[1:] if argv is None else argv)
+    if args is None:
+        return 0
+    torch.set_num_threads(args.threads)
+    methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
+    config = learning_config(args, methods)
+    options = DriftOptions(args.scenes, args.chunks, args.boundaries, args.threshold)
+    report = run_drift(config, options, args.cache, args.workers)
+    write_drift(report, args.out)
+    print(drift_markdown(report))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
