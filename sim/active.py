@@ -17,7 +17,6 @@ held-out test sets: mean and worst ADE against scenes simulated. It writes ``act
 
 from __future__ import annotations
 
-import json
 import sys
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -28,7 +27,7 @@ import torch
 
 from c2inet.data import Windows
 from c2inet.errors import InputError
-from c2inet.files import writable_folder, write_atomic, write_text_atomic
+from c2inet.files import write_atomic
 from c2inet.options import check_range
 from c2inet.stream import StreamLearner
 from c2inet.trainer import Task
@@ -38,6 +37,7 @@ from sim.data import cut_windows
 from sim.domains import domain_seed
 from sim.experiment import ExperimentConfig
 from sim.generators import Generator, child_seed, get_generator
+from sim.outputs import write_report
 from sim.run import add_learning_options, learning_config
 from sim.scenario import DomainSpec
 from viz.cli import bounded_int, guarded
@@ -255,10 +255,7 @@ def active_figure(report: dict[str, Any], path: Path) -> None:
 
 def write_active(report: dict[str, Any], out: Path) -> None:
     """``active.json``, ``active.md`` and ``active.png`` in ``out``."""
-    writable_folder(out, "--out")
-    write_text_atomic(out / "active.json", json.dumps(report, indent=1) + "\n")
-    write_text_atomic(out / "active.md", active_markdown(report))
-    active_figure(report, out / "active.png")
+    write_report(out, "active", report, active_markdown, active_figure)
 
 
 @guarded

@@ -15,7 +15,6 @@ value. It writes ``drift.json``, ``drift.md`` and ``drift.png`` to ``--out``.
 
 from __future__ import annotations
 
-import json
 import sys
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -26,7 +25,7 @@ import torch
 
 from c2inet.data import Windows
 from c2inet.errors import InputError
-from c2inet.files import writable_folder, write_atomic, write_text_atomic
+from c2inet.files import write_atomic
 from c2inet.options import check_range
 from c2inet.stream import ShiftDetector, StreamLearner
 from sim.cli import parse, parser
@@ -35,6 +34,7 @@ from sim.data import cut_windows
 from sim.domains import domain_seed
 from sim.experiment import ExperimentConfig
 from sim.generators import Generator, child_seed, get_generator
+from sim.outputs import write_report
 from sim.run import add_learning_options, learning_config
 from sim.scenario import DomainSpec
 from viz.cli import bounded_float, bounded_int, guarded
@@ -255,10 +255,7 @@ def drift_figure(report: dict[str, Any], path: Path) -> None:
 
 def write_drift(report: dict[str, Any], out: Path) -> None:
     """``drift.json``, ``drift.md`` and ``drift.png`` in ``out``."""
-    writable_folder(out, "--out")
-    write_text_atomic(out / "drift.json", json.dumps(report, indent=1) + "\n")
-    write_text_atomic(out / "drift.md", drift_markdown(report))
-    drift_figure(report, out / "drift.png")
+    write_report(out, "drift", report, drift_markdown, drift_figure)
 
 
 @guarded

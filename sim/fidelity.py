@@ -18,7 +18,6 @@ It writes ``fidelity.json``, ``fidelity.md`` and ``fidelity.png`` to ``--out``.
 
 from __future__ import annotations
 
-import json
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -29,12 +28,13 @@ import torch
 from scipy.stats import wasserstein_distance
 
 from c2inet.errors import InputError
-from c2inet.files import writable_folder, write_atomic, write_text_atomic
+from c2inet.files import write_atomic
 from c2inet.trainer import ContinualTrainer, Task, evaluate
 from sim.cli import parse, parser
 from sim.curriculum import make_tasks
 from sim.data import Domain
 from sim.experiment import ExperimentConfig
+from sim.outputs import write_report
 from sim.run import add_learning_options, learning_config
 from sim.scenario import parse_scenario
 from sim.stats import PROFILES, realised_summary, scene_profiles
@@ -315,12 +315,9 @@ def fidelity_figure(report: dict[str, Any], path: Path) -> None:
     plt.close(fig)
 
 
-def write_report(report: dict[str, Any], out: Path) -> None:
+def write_fidelity(report: dict[str, Any], out: Path) -> None:
     """``fidelity.json``, ``fidelity.md`` and ``fidelity.png`` in ``out``."""
-    writable_folder(out, "--out")
-    write_text_atomic(out / "fidelity.json", json.dumps(report, indent=1) + "\n")
-    write_text_atomic(out / "fidelity.md", fidelity_markdown(report))
-    fidelity_figure(report, out / "fidelity.png")
+    write_report(out, "fidelity", report, fidelity_markdown, fidelity_figure)
 
 
 @guarded
@@ -353,7 +350,7 @@ def main(argv: list[str] | None = None) -> int:
         args.cache,
         args.workers,
     )
-    write_report(report, args.out)
+    write_fidelity(report, args.out)
     print(fidelity_markdown(report))
     print(f"wrote {args.out}/fidelity.json, fidelity.md, fidelity.png", file=sys.stderr)
     return 0

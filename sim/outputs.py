@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 import torch
 
 from c2inet.errors import InputError
-from c2inet.files import write_text_atomic
+from c2inet.files import writable_folder, write_text_atomic
 from c2inet.report import markdown_report, matrix_csv, summarise, summarise_diagnostics
 from sim.data import SPLITS
 from sim.generate import domain_summary
@@ -239,3 +239,12 @@ def write_outputs(
 def _window_counts(task) -> dict[str, int]:
     """Windows per split of a task (0 for a missing split)."""
     return {s: 0 if getattr(task, s) is None else len(getattr(task, s)) for s in SPLITS}
+
+
+def write_report(out: Path, name: str, report: dict[str, Any], markdown, figure) -> None:
+    """A study's three files in ``out``: ``NAME.json`` (``report``), ``NAME.md``
+    (``markdown(report)``) and ``NAME.png`` (``figure(report, path)``), each written whole."""
+    writable_folder(out, "--out")
+    write_text_atomic(out / f"{name}.json", json.dumps(report, indent=1) + "\n")
+    write_text_atomic(out / f"{name}.md", markdown(report))
+    figure(report, out / f"{name}.png")

@@ -94,19 +94,9 @@ def add_learning_options(p, methods: str | None = None) -> None:
 
 def learning_config(args, methods: tuple[str, ...], scenario: str | None = None):
     """The ``ExperimentConfig`` of :func:`add_learning_options`' options (no recording)."""
-    return ExperimentConfig(
-        scenario or args.scenario,
-        methods=methods,
-        seeds=args.seeds,
-        seed=args.seed,
-        epochs=args.epochs,
-        k=args.k,
-        backbone=args.backbone,
-        quick=args.quick,
-        settings=parse_settings(args.set),
-        scenarios_dir=tuple(args.scenarios_dir),
-        record=False,
-    )
+    settings = parse_settings(args.set)
+    options = {**_trained(args), "methods": methods, "settings": settings, "record": False}
+    return ExperimentConfig(scenario or args.scenario, **options)
 
 
 def experiment_options(args) -> dict:
@@ -117,6 +107,14 @@ def experiment_options(args) -> dict:
             if args.methods.strip() == "all"
             else tuple(n.strip() for n in args.methods.split(",") if n.strip())
         ),
+        **_trained(args),
+        "record": not args.no_record,
+    }
+
+
+def _trained(args) -> dict:
+    """What both option sets say about the training and the data."""
+    return {
         "seeds": args.seeds,
         "seed": args.seed,
         "epochs": args.epochs,
@@ -124,7 +122,6 @@ def experiment_options(args) -> dict:
         "backbone": args.backbone,
         "quick": args.quick,
         "scenarios_dir": tuple(args.scenarios_dir),
-        "record": not args.no_record,
     }
 
 

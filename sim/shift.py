@@ -15,7 +15,6 @@ It writes ``shift.json``, ``shift.md`` and ``shift.png`` to ``--out`` beside the
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -24,11 +23,12 @@ import numpy as np
 import pyarrow.parquet as pq
 
 from c2inet.errors import InputError
-from c2inet.files import write_atomic, write_text_atomic
+from c2inet.files import write_atomic
 from sim.cli import parse, parser
 from sim.curriculum import make_tasks
 from sim.experiment import Execution, ExperimentConfig
 from sim.fidelity import compare_statistics
+from sim.outputs import write_report
 from sim.run import add_experiment_options, execution_of, experiment_options
 from sim.scenario import DomainSpec, parse_scenario
 from sim.sweep import SweepConfig, run_sweep
@@ -205,9 +205,7 @@ def run_shift(
         pairs += [f"{first.name}+{spec.name}" for spec in shifted]
     run_sweep(SweepConfig(base, tuple(pairs)), out, execution, resume, overwrite, argv)
     summary = summarise_shift(scenarios, base, out, execution.cache)
-    write_text_atomic(out / "shift.json", json.dumps(summary, indent=1) + "\n")
-    write_text_atomic(out / "shift.md", shift_markdown(summary))
-    shift_figure(summary, out / "shift.png")
+    write_report(out, "shift", summary, shift_markdown, shift_figure)
     return summary
 
 

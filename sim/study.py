@@ -10,16 +10,16 @@ outputs (a run per curriculum and variant, ``results.parquet``) plus ``study.md`
 
 from __future__ import annotations
 
-import json
 import sys
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 from c2inet.errors import InputError, did_you_mean
-from c2inet.files import write_atomic, write_text_atomic
+from c2inet.files import write_atomic
 from sim.cli import parse, parser
 from sim.experiment import ExperimentConfig
+from sim.outputs import write_report
 from sim.run import add_experiment_options, execution_of, experiment_options
 from sim.sweep import SweepConfig, run_sweep
 from viz.cli import guarded
@@ -223,9 +223,7 @@ def run_study(
 
 def write_study(summary: dict, out: Path) -> None:
     """``study.json``, ``study.md`` and ``study.png`` of a study's summary."""
-    write_text_atomic(out / "study.json", json.dumps(summary, indent=1) + "\n")
-    write_text_atomic(out / "study.md", study_markdown(summary))
-    study_figure(summary, out / "study.png")
+    write_report(out, "study", summary, study_markdown, study_figure)
 
 
 @guarded

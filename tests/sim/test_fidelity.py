@@ -12,7 +12,7 @@ from sim.fidelity import (
     fidelity_report,
     main,
     relative_difference,
-    write_report,
+    write_fidelity,
 )
 from sim.scenario import parse_scenario
 from sim.stats import realised_summary, scene_profiles
@@ -67,7 +67,7 @@ def test_transfer_report_trains_tests_and_writes(tmp_path):
     pair = report["pairs"][1]
     assert pair["domains"] == ["crowd_radius_0.5", "orca_radius_0.5"]
     assert pair["transfer"]["ratio"] == pytest.approx(matrix[1, 3] / matrix[3, 3])
-    write_report(report, tmp_path / "out")
+    write_fidelity(report, tmp_path / "out")
     written = json.loads((tmp_path / "out" / "fidelity.json").read_text())
     assert written["transfer"]["ade"] == report["transfer"]["ade"]
     assert "Transfer ratio within the target" in (tmp_path / "out" / "fidelity.md").read_text()
