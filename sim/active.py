@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 import torch
+from tqdm import tqdm
 
 from c2inet.data import Windows
 from c2inet.errors import InputError
@@ -119,7 +120,8 @@ def run_strategy(
     """One strategy's rounds: the values it chose and the held-out errors after each."""
     train = replace(config.train_config(seed_index), diagnostics=False, val_every=0)
     learner = StreamLearner(config.method(method), train)
-    rng = np.random.default_rng(np.random.SeedSequence(config.seed, spawn_key=(order_seed,)))
+    order = np.random.SeedSequence(config.seed, spawn_key=(seed_index, order_seed))
+    rng = np.random.default_rng(order)
     grid = len(tasks)
     chosen, mean, worst = [], [], []
     for round_ in range(options.rounds):
@@ -165,13 +167,17 @@ def run_active(
     method = config.methods[0]
     source = SceneSource(specs, options.scenes, config.seed)
     strategies = {}
+    count = sum(options.random_orders if s == "random" else 1 for s in options.strategies)
+    bar = tqdm(total=count * config.seeds, desc="runs", unit="run", file=sys.stderr, leave=False)
     for strategy in options.strategies:
         orders = options.random_orders if strategy == "random" else 1
-        runs = [
-            run_strategy(strategy, order, config, method, tasks, source, options, s)
-            for s in range(config.seeds)
-            for order in range(orders)
-        ]
+        runs = []
+        for s in range(config.seeds):
+            for order in range(orders):
+                runs.append(
+                    run_strategy(strategy, order, config, method, tasks, source, options, s)
+                )
+                bar.update()
         mean, worst = np.array([r["mean"] for r in runs]), np.array([r["worst"] for r in runs])
         strategies[strategy] = {
             "runs": len(runs),
@@ -182,6 +188,7 @@ def run_active(
             "worst_std": worst.std(0).tolist(),
             "final_errors": np.mean([r["final_errors"] for r in runs], axis=0).tolist(),
         }
+    bar.close()
     return {
         "scenario": config.scenario,
         "family": specs[0].family.name,

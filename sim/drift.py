@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 import torch
+from tqdm import tqdm
 
 from c2inet.data import Windows
 from c2inet.errors import InputError
@@ -103,7 +104,9 @@ def drift_stream(
     return chunks, middles
 
 
-def stream_run(config: ExperimentConfig, method: str, seed_index: int, chunks, probes, options):
+def stream_run(
+    config: ExperimentConfig, method: str, seed_index: int, chunks, probes, options, bar=None
+):
     """One method through the stream: the (chunks x probes) ADE and FDE, and the boundaries the
     detector found and the method was given."""
     train = replace(config.train_config(seed_index), diagnostics=False, val_every=0)
@@ -118,6 +121,8 @@ def stream_run(config: ExperimentConfig, method: str, seed_index: int, chunks, p
         for j, probe in enumerate(probes):
             scores = learner.evaluate(probe, train.seed + j)
             ade[c, j], fde[c, j] = scores["ade"], scores["fde"]
+        if bar is not None:
+            bar.update()
     return ade, fde, found, learner.boundaries
 
 
@@ -147,8 +152,12 @@ def run_drift(
     probe_values = [float(spec.value) for spec in specs]
     chunks, middles = drift_stream(specs, options, config.seed)
     methods = {}
+    total = len(config.methods) * config.seeds * len(chunks)
+    bar = tqdm(total=total, desc="chunks", unit="chunk", file=sys.stderr, leave=False)
     for name in config.methods:
-        runs = [stream_run(config, name, s, chunks, probes, options) for s in range(config.seeds)]
+        runs = [
+            stream_run(config, name, s, chunks, probes, options, bar) for s in range(config.seeds)
+        ]
         ade = np.stack([r[0] for r in runs])
         fde = np.stack([r[1] for r in runs])
         lost = np.stack([forgetting(a, middles, probe_values) for a in ade])
@@ -166,6 +175,7 @@ def run_drift(
             "detected": runs[0][2],
             "given": runs[0][3],
         }
+    bar.close()
     return {
         "scenario": config.scenario,
         "family": specs[0].family.name,
@@ -222,7 +232,8 @@ def drift_markdown(report: dict[str, Any]) -> str:
 
 def drift_figure(report: dict[str, Any], path: Path) -> None:
     """Left: mean probe ADE over the stream per method, boundaries marked. Right: each
-    method's error-over-time matrix."""
+    method's error-over-time matrix, as each probe's excess over its best (forgetting shows as
+    colour returning down a column)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -239,14 +250,17 @@ def drift_figure(report: dict[str, Any], path: Path) -> None:
     ax.set(xlabel=f"{report['knob']} at the stream's position", ylabel="mean probe ADE (m)")
     ax.set_title(f"boundaries: {report['boundaries']}", fontsize=9)
     ax.legend(fontsize=7)
-    top = max(np.max(m["ade"]) for m in methods.values())
-    for ax, (name, m) in zip(axes[1:], methods.items(), strict=True):
-        image = ax.imshow(m["ade"], aspect="auto", cmap="magma_r", vmin=0, vmax=top)
+    relative = {
+        name: np.asarray(m["ade"]) / np.min(m["ade"], axis=0) - 1 for name, m in methods.items()
+    }
+    top = max(100 * r.max() for r in relative.values())
+    for ax, name in zip(axes[1:], methods, strict=True):
+        image = ax.imshow(100 * relative[name], aspect="auto", cmap="magma_r", vmin=0, vmax=top)
         ax.set_xticks(range(len(report["probes"])), [f"{v:g}" for v in report["probes"]])
         ax.set_yticks(range(len(values)), [f"{v:.2f}" for v in values], fontsize=6)
         ax.set(xlabel="probe", ylabel="after the chunk at")
         ax.set_title(name, fontsize=9)
-    fig.colorbar(image, ax=axes[-1], label="ADE (m)")
+    fig.colorbar(image, ax=axes[-1], label="ADE above the probe's best (%)")
     fig.suptitle(f"drift of {report['family']}", fontsize=10)
     fig.tight_layout()
     write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
