@@ -5,6 +5,8 @@
 knob value to simulate next, and the method learns those scenes (a task each round):
 
 - ``error``: where the current model errs most on the grid's validation sets;
+- ``relative``: where it errs most relative to constant velocity there (the model's error over
+  the value's own difficulty: noise no model can predict raises both);
 - ``spread``: where its samples disagree most there (no labels needed);
 - ``fixed``: the grid in order, spread evenly over the rounds (the usual curriculum);
 - ``random``: uniformly at random (``--random-orders`` orders, averaged).
@@ -31,7 +33,7 @@ from c2inet.errors import InputError
 from c2inet.files import write_atomic
 from c2inet.options import check_range
 from c2inet.stream import StreamLearner
-from c2inet.trainer import Task
+from c2inet.trainer import Task, evaluate
 from sim.cli import parse, parser
 from sim.curriculum import make_tasks
 from sim.data import cut_windows
@@ -43,7 +45,7 @@ from sim.run import add_learning_options, learning_config
 from sim.scenario import DomainSpec
 from viz.cli import bounded_int, guarded
 
-STRATEGIES = ("error", "spread", "fixed", "random")
+STRATEGIES = ("error", "relative", "spread", "fixed", "random")
 
 
 @dataclass(frozen=True)
@@ -116,8 +118,10 @@ def run_strategy(
     source: SceneSource,
     options: ActiveOptions,
     seed_index: int,
+    baseline: list[float],
 ) -> dict[str, list]:
-    """One strategy's rounds: the values it chose and the held-out errors after each."""
+    """One strategy's rounds: the values it chose and the held-out errors after each.
+    ``baseline``: constant velocity's validation ADE at each grid value."""
     train = replace(config.train_config(seed_index), diagnostics=False, val_every=0)
     learner = StreamLearner(config.method(method), train)
     order = np.random.SeedSequence(config.seed, spawn_key=(seed_index, order_seed))
@@ -131,24 +135,25 @@ def run_strategy(
             index = round(round_ * (grid - 1) / max(options.rounds - 1, 1))
         elif strategy == "random":
             index = int(rng.integers(grid))
-        elif strategy == "error":
-            index = int(
-                np.argmax(
-                    [learner.evaluate(t.val, train.seed + j)["ade"] for j, t in enumerate(tasks)]
-                )
-            )
-        else:  # spread
-            index = int(
-                np.argmax(
-                    [learner.disagreement(t.val, train.seed + j) for j, t in enumerate(tasks)]
-                )
-            )
+        else:
+            index = int(np.argmax(need(strategy, learner, tasks, train.seed, baseline)))
         learner.learn(source.draw(round_, index), boundary=round_ > 0)
         errors = [learner.evaluate(t.test, train.seed + j)["ade"] for j, t in enumerate(tasks)]
         chosen.append(index)
         mean.append(float(np.mean(errors)))
         worst.append(float(np.max(errors)))
     return {"chosen": chosen, "mean": mean, "worst": worst, "final_errors": errors}
+
+
+def need(strategy: str, learner: StreamLearner, tasks: list[Task], seed: int, baseline) -> list:
+    """How much each grid value needs more scenes, by a score-based strategy, on the grid's
+    validation sets."""
+    if strategy == "spread":
+        return [learner.disagreement(t.val, seed + j) for j, t in enumerate(tasks)]
+    errors = [learner.evaluate(t.val, seed + j)["ade"] for j, t in enumerate(tasks)]
+    if strategy == "relative":
+        return [e / b for e, b in zip(errors, baseline, strict=True)]
+    return errors
 
 
 def run_active(
@@ -166,6 +171,8 @@ def run_active(
         raise InputError(f"scenario {config.scenario!r}: every grid value needs validation scenes")
     method = config.methods[0]
     source = SceneSource(specs, options.scenes, config.seed)
+    cv = config.method("cv").build_model()
+    baseline = [evaluate(cv, t.val, config.k, config.seed + j)["ade"] for j, t in enumerate(tasks)]
     strategies = {}
     count = sum(options.random_orders if s == "random" else 1 for s in options.strategies)
     bar = tqdm(total=count * config.seeds, desc="runs", unit="run", file=sys.stderr, leave=False)
@@ -174,9 +181,8 @@ def run_active(
         runs = []
         for s in range(config.seeds):
             for order in range(orders):
-                runs.append(
-                    run_strategy(strategy, order, config, method, tasks, source, options, s)
-                )
+                args = (config, method, tasks, source, options, s, baseline)
+                runs.append(run_strategy(strategy, order, *args))
                 bar.update()
         mean, worst = np.array([r["mean"] for r in runs]), np.array([r["worst"] for r in runs])
         strategies[strategy] = {

@@ -6,7 +6,11 @@ import json
 import numpy as np
 import pytest
 
+from c2inet.checker import CHECK_CONFIG, turning_tasks
 from c2inet.errors import InputError
+from c2inet.methods.base import get_method
+from c2inet.model import ModelConfig
+from c2inet.stream import StreamLearner
 from sim import active, drift, shift
 from sim.experiment import Execution, ExperimentConfig
 
@@ -77,7 +81,7 @@ def test_active_strategies_choose_differently_and_draw_the_same_scenes(tmp_path)
     options = active.ActiveOptions(rounds=3, scenes=4, random_orders=2)
     report = active.run_active(config, options, tmp_path / "cache")
     runs = report["strategies"]
-    assert runs["fixed"]["chosen"] == [[0, 2, 5]]
+    assert runs["fixed"]["chosen"] == [[0, 2, 5]] and set(runs) == set(active.STRATEGIES)
     assert all(chosen[0] == 0 for s in runs.values() for chosen in s["chosen"])
     assert runs["random"]["runs"] == 2
     assert runs["error"]["mean"][0] == runs["fixed"]["mean"][0]  # the same first round
@@ -103,3 +107,14 @@ def test_bad_input_is_one_error_line(tmp_path, capsys, command, argv, message):
     assert command([*argv, "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
+
+
+def test_needs_rank_grid_values_by_error_relative_error_and_spread():
+    tasks = turning_tasks((0.05, 0.4))
+    learner = StreamLearner(get_method("finetune")(ModelConfig()), CHECK_CONFIG)
+    learner.learn(tasks[0].train)
+    errors = active.need("error", learner, tasks, 0, [1.0, 1.0])
+    assert errors[1] > errors[0]  # the unseen, sharper turn is worse
+    relative = active.need("relative", learner, tasks, 0, [1.0, 4 * errors[1] / errors[0]])
+    np.testing.assert_allclose(relative, [errors[0], errors[0] / 4])  # its ranking flips
+    assert all(s > 0 for s in active.need("spread", learner, tasks, 0, [1.0, 1.0]))
