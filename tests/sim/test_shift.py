@@ -1,0 +1,33 @@
+"""Forgetting against the size of the shift: two-task curricula and both measures of a shift."""
+
+import numpy as np
+import pytest
+
+from c2inet.errors import InputError
+from sim import shift
+from sim.experiment import Execution, ExperimentConfig
+
+
+def quick(scenario: str, *methods: str) -> ExperimentConfig:
+    return ExperimentConfig(scenario, methods=methods, quick=True, record=False)
+
+
+def test_shift_runs_two_task_curricula_and_measures_both_shifts(tmp_path):
+    base = quick("crowd_noise_0.1,0.3,0.6", "finetune")
+    summary = shift.run_shift(["crowd_noise_0.1,0.3,0.6"], base, tmp_path, Execution(workers=1))
+    (family,) = summary["families"]
+    assert [r["domain"] for r in family["rows"]] == ["crowd_noise_0.3", "crowd_noise_0.6"]
+    distance = [r["statistics_distance"] for r in family["rows"]]
+    assert 0 < distance[0] < distance[1]  # a larger knob shift moves the statistics further
+    cells = [r["methods"]["finetune"] for r in family["rows"]]
+    assert all(np.isfinite(c["forgetting"]) and np.isfinite(c["gap"]) for c in cells)
+    assert family["peaks"]["finetune"]["shift"] in (0.2, 0.5)
+    assert (tmp_path / "shift.png").read_bytes()[:4] == b"\x89PNG"
+    assert "forgets most" in (tmp_path / "shift.md").read_text()
+
+
+def test_shift_needs_a_base_and_shifted_values():
+    with pytest.raises(InputError, match="base value first"):
+        shift.shift_grid("crowd_noise_0.1", [])
+    with pytest.raises(InputError, match="base value first"):
+        shift.shift_grid("eth_ucy_eth,hotel", [])
