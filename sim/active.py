@@ -161,12 +161,13 @@ def run_active(
     options: ActiveOptions,
     cache: Path = Path(".cache/domains"),
     workers: int = 1,
+    memory_budget: float | None = None,
 ) -> dict[str, Any]:
     """Every strategy for the first method of ``config``; the report as a dictionary."""
     specs = grid_specs(config)
     if config.quick:
         options = replace(options, rounds=min(options.rounds, 3), scenes=min(options.scenes, 6))
-    tasks, _ = make_tasks(specs, config.seed, config.quick, cache, workers)
+    tasks, _ = make_tasks(specs, config.seed, config.quick, cache, workers, memory_budget)
     if any(t.val is None for t in tasks):
         raise InputError(f"scenario {config.scenario!r}: every grid value needs validation scenes")
     method = config.methods[0]
@@ -292,7 +293,7 @@ def main(argv: list[str] | None = None) -> int:
     config = learning_config(args, (args.method,))
     strategies = tuple(s.strip() for s in args.strategies.split(",") if s.strip())
     options = ActiveOptions(args.rounds, args.scenes, strategies, args.random_orders)
-    report = run_active(config, options, args.cache, args.workers)
+    report = run_active(config, options, args.cache, args.workers, args.memory_budget)
     write_active(report, args.out)
     print(active_markdown(report))
     return 0

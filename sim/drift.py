@@ -142,12 +142,13 @@ def run_drift(
     options: DriftOptions,
     cache: Path = Path(".cache/domains"),
     workers: int = 1,
+    memory_budget: float | None = None,
 ) -> dict[str, Any]:
     """Every method of ``config`` through the drift stream; the report as a dictionary."""
     specs = drift_specs(config)
     if config.quick:
         options = replace(options, scenes=min(options.scenes, 24), chunks=min(options.chunks, 3))
-    tasks, _ = make_tasks(specs, config.seed, config.quick, cache, workers)
+    tasks, _ = make_tasks(specs, config.seed, config.quick, cache, workers, memory_budget)
     probes = [task.test for task in tasks]
     probe_values = [float(spec.value) for spec in specs]
     chunks, middles = drift_stream(specs, options, config.seed)
@@ -292,7 +293,7 @@ def main(argv: list[str] | None = None) -> int:
     methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
     config = learning_config(args, methods)
     options = DriftOptions(args.scenes, args.chunks, args.boundaries, args.threshold)
-    report = run_drift(config, options, args.cache, args.workers)
+    report = run_drift(config, options, args.cache, args.workers, args.memory_budget)
     write_drift(report, args.out)
     print(drift_markdown(report))
     return 0

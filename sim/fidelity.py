@@ -137,6 +137,7 @@ def fidelity_report(
     transfer: bool = True,
     cache: Path = Path(".cache/domains"),
     workers: int = 1,
+    memory_budget: float | None = None,
 ) -> dict[str, Any]:
     """The fidelity report of ``scenario`` against ``reference`` as a dictionary (see the
     module docstring); ``config`` gives the training options of the transfer runs."""
@@ -150,7 +151,7 @@ def fidelity_report(
             f"{scenario!r} {len(generated_specs)}: they pair by position, so give as many"
         )
     specs = generated_specs + reference_specs
-    tasks, domains = make_tasks(specs, config.seed, config.quick, cache, workers)
+    tasks, domains = make_tasks(specs, config.seed, config.quick, cache, workers, memory_budget)
     n = len(generated_specs)
     pairs = []
     for i in range(n):
@@ -349,6 +350,7 @@ def main(argv: list[str] | None = None) -> int:
         not args.no_transfer,
         args.cache,
         args.workers,
+        args.memory_budget,
     )
     write_fidelity(report, args.out)
     print(fidelity_markdown(report))

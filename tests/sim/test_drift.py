@@ -55,9 +55,10 @@ def test_forgetting_without_boundaries_counts_from_where_the_stream_reached_a_pr
     [
         (["--scenario", "eth_ucy_eth,hotel"], "one simulated family"),
         (["--scenario", "crowd_noise_0.1..0.3", "--chunks", "0"], "--chunks"),
+        (["--scenario", "crowd_noise_0.1..0.3", "--memory-budget", "0.001"], "memory budget"),
     ],
 )
 def test_bad_input_is_one_error_line(tmp_path, capsys, argv, message):
-    assert drift.main([*argv, "--out", str(tmp_path)]) == 2
+    assert drift.main([*argv, "--out", str(tmp_path), "--cache", str(tmp_path / "cache")]) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
