@@ -11,26 +11,24 @@ one segment, which the hooks see as one task (``ctx.train`` is the chunk at hand
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from itertools import pairwise
 
 import numpy as np
-import torch
 
 from c2inet.data import Windows
+from c2inet.diagnostics import observed_features
 from c2inet.methods.base import Method, TaskContext
-from c2inet.trainer import TrainConfig, _generator, evaluate, sample_predictions, train_epoch
+from c2inet.trainer import TrainConfig, evaluate, sample_predictions, start_training, train_epoch
+
+# observed_features' mean speed, heading change, agent count and smallest neighbour distance
+FEATURES = [2, 5, 6, 9]
 
 
 class StreamLearner:
     """One method, one model, trained chunk by chunk (``config.epochs`` passes over each)."""
 
     def __init__(self, method: Method, config: TrainConfig):
-        torch.manual_seed(config.seed)
         self.method, self.config = method, config
-        self.rng = _generator(config.seed, method.name)
-        self.model = method.build_model()
-        trains = method.trains
-        self.optimiser = torch.optim.Adam(self.model.parameters(), lr=config.lr) if trains else None
+        self.model, self.optimiser, self.rng = start_training(method, config)
         self.ctx: TaskContext | None = None
         self.boundaries: list[int] = []  # chunk indices that opened a segment
         self.seen: list[Windows] = []  # earlier chunks, kept only for ``sees_old_tasks`` (joint)
@@ -79,33 +77,13 @@ class StreamLearner:
         return float(np.sqrt(final.var(axis=0).sum(axis=-1)).mean())
 
 
-def scene_features(windows: Windows) -> np.ndarray:
-    """Per scene (rows): mean speed (metres per frame), mean absolute heading change per frame
-    (rad) and closest approach of two of its agents (m; NaN for a lone agent)."""
-    step = np.diff(windows.positions, axis=1)
-    length = np.linalg.norm(step, axis=-1)  # (agents, frames - 1)
-    heading = np.arctan2(step[..., 1], step[..., 0])
-    turn = np.abs(np.angle(np.exp(1j * np.diff(heading, axis=1))))
-    turn[(length[:, 1:] <= 0.01) | (length[:, :-1] <= 0.01)] = np.nan  # standing: no heading
-    out = np.full((len(windows), 3), np.nan)
-    for k, (first, last) in enumerate(pairwise(windows.scene_start)):
-        out[k, 0] = length[first:last].mean()
-        if np.isfinite(turn[first:last]).any():
-            out[k, 1] = np.nanmean(turn[first:last])
-        if last - first > 1:
-            scene = windows.positions[first:last]
-            gaps = np.linalg.norm(scene[:, None] - scene[None], axis=-1)
-            gaps[np.arange(last - first), np.arange(last - first)] = np.inf
-            out[k, 2] = gaps.min()
-    return out
-
-
 @dataclass
 class ShiftDetector:
     """Declares a boundary when the scenes of a chunk move differently from those of the chunk
-    that opened the segment: some feature of :func:`scene_features` whose mean changed by more
-    than ``threshold`` (relative) and by more than ``z`` standard errors (so that sampling noise
-    of small chunks does not fire it).
+    that opened the segment: some per-scene feature of what the model observes (``FEATURES`` of
+    :func:`c2inet.diagnostics.observed_features`) whose mean changed by more than ``threshold``
+    (relative) and by more than ``z`` standard errors (so that sampling noise of small chunks
+    does not fire it).
 
     It looks at the data only: gradual drift yields a boundary each time the accumulated change
     passes the threshold, an abrupt shift one at once.
@@ -117,7 +95,8 @@ class ShiftDetector:
     reference: np.ndarray | None = field(default=None, repr=False)
 
     def __call__(self, chunk: Windows) -> bool:
-        features = scene_features(chunk)
+        features = observed_features(chunk)[:, FEATURES]
+        features[features < 0] = np.nan  # -1: a lone agent has no neighbour distance
         if self.reference is None:
             self.reference = features
             return False

@@ -130,6 +130,17 @@ def evaluate_all(
     return scores
 
 
+def start_training(method: Method, cfg: TrainConfig):
+    """A fresh model, its optimiser (None for a method that does not train) and the run's
+    random generator, seeded from ``cfg.seed`` in a fixed order: every run of a seed starts
+    alike."""
+    torch.manual_seed(cfg.seed)
+    rng = _generator(cfg.seed, method.name)
+    model = method.build_model()
+    optimiser = torch.optim.Adam(model.parameters(), lr=cfg.lr) if method.trains else None
+    return model, optimiser, rng
+
+
 def train_epoch(method: Method, ctx: TaskContext, data: Windows, cfg: TrainConfig) -> dict:
     """One pass over ``data`` in shuffled batches, with the method's step hooks; returns the mean
     of each loss part over the steps."""
@@ -178,10 +189,7 @@ class ContinualTrainer:
         """Train through every task; with ``resume``, continue after the last task checkpoint
         in ``checkpoint_dir``, giving exactly the result of an uninterrupted run."""
         cfg, method = self.config, self.method
-        torch.manual_seed(cfg.seed)
-        rng = _generator(cfg.seed, method.name)
-        model = method.build_model()
-        optimiser = torch.optim.Adam(model.parameters(), lr=cfg.lr) if method.trains else None
+        model, optimiser, rng = start_training(method, cfg)
         n = len(self.tasks)
         result = Result([t.name for t in self.tasks], {})
         start = self._replay(model, optimiser, rng, result) if resume else 0

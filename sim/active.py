@@ -35,11 +35,10 @@ from c2inet.options import check_range
 from c2inet.stream import StreamLearner
 from c2inet.trainer import Task, evaluate
 from sim.cli import parse, parser
-from sim.curriculum import make_tasks
-from sim.data import cut_windows
+from sim.curriculum import knob_grid, make_tasks, scene_windows
 from sim.domains import domain_seed
 from sim.experiment import ExperimentConfig
-from sim.generators import Generator, child_seed, get_generator
+from sim.generators import child_seed
 from sim.outputs import write_report
 from sim.run import add_learning_options, learning_config
 from sim.scenario import DomainSpec
@@ -71,16 +70,8 @@ class ActiveOptions:
 
 def grid_specs(config: ExperimentConfig) -> list[DomainSpec]:
     """The grid: one numeric family that can simulate single scenes, two values or more."""
-    specs = config.specs()
-    family = specs[0].family
-    if len({s.family.name for s in specs}) != 1 or len(specs) < 2 or family.values:
-        raise InputError(
-            f"scenario {config.scenario!r}: an active curriculum needs a grid of one simulated "
-            "family's values, e.g. crowd_noise_0.1..0.6:0.05"
-        )
-    if get_generator(family.generator).rollout is Generator.rollout:
-        raise InputError(f"scenario {config.scenario!r}: family cannot simulate single scenes")
-    return specs
+    where = f"scenario {config.scenario!r} (an active curriculum's grid)"
+    return knob_grid(config.specs(), where, "crowd_noise_0.1..0.6:0.05", single_scenes=True)
 
 
 class SceneSource:
@@ -89,7 +80,6 @@ class SceneSource:
 
     def __init__(self, specs: list[DomainSpec], scenes: int, seed: int):
         self.specs, self.scenes = specs, scenes
-        self.generator = get_generator(specs[0].family.generator)()
         self.seeds = [
             domain_seed(seed, replace(spec, label=f"{spec.label}-active")) for spec in specs
         ]
@@ -98,14 +88,8 @@ class SceneSource:
     def draw(self, round_: int, index: int) -> Windows:
         if (round_, index) not in self.made:
             spec = self.specs[index]
-            knobs = spec.knobs()
-            windows = [
-                cut_windows(
-                    self.generator.rollout(knobs, child_seed(self.seeds[index], round_, k), 20)
-                )
-                for k in range(self.scenes)
-            ]
-            self.made[round_, index] = Windows.concat([w for w in windows if w is not None])
+            seeds = [child_seed(self.seeds[index], round_, k) for k in range(self.scenes)]
+            self.made[round_, index] = scene_windows(spec.family, [spec.value] * self.scenes, seeds)
         return self.made[round_, index]
 
 

@@ -15,12 +15,13 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from c2inet.data import OBS_LEN, PRED_LEN, Windows
 from c2inet.errors import InputError
 from c2inet.trainer import Task
 from sim.data import SPLITS, cut_windows, window_members
 from sim.domains import build_domain, rollout_scene
 from sim.families import Splits
-from sim.generators import get_generator
+from sim.generators import Generator, get_generator
 from sim.scenario import DomainSpec, parse_scenario
 from viz.observer import Showcase
 
@@ -110,3 +111,26 @@ def learner_tasks(
     """
     specs = parse_scenario(scenario, list(scenarios_dir), data)
     return make_tasks(specs, seed, quick, cache, os.cpu_count() or 1)[0]
+
+
+def knob_grid(specs: list[DomainSpec], where: str, example: str, single_scenes: bool = False):
+    """``specs`` if they are two values or more of one numeric family, else an
+    :class:`InputError` naming ``where``; with ``single_scenes``, the family's generator must
+    also simulate a scene on its own (:func:`scene_windows`)."""
+    family = specs[0].family
+    if len(specs) < 2 or len({s.family.name for s in specs}) != 1 or family.values:
+        raise InputError(f"{where}: give one numeric family, two values or more, e.g. {example}")
+    if single_scenes and get_generator(family.generator).rollout is Generator.rollout:
+        raise InputError(f"{where}: family {family.name!r} cannot simulate single scenes")
+    return specs
+
+
+def scene_windows(family, values, seeds: list[np.random.SeedSequence]) -> Windows:
+    """One scene of ``family`` per (knob value, seed), each simulated on its own (the
+    generator's ``rollout``), as learner windows: the scenes of a drift or an active round."""
+    generator = get_generator(family.generator)()
+    parts = [
+        cut_windows(generator.rollout(family.knobs_for(float(v)), seed, OBS_LEN + PRED_LEN))
+        for v, seed in zip(values, seeds, strict=True)
+    ]
+    return Windows.concat([p for p in parts if p is not None])

@@ -30,13 +30,12 @@ from c2inet.files import write_atomic
 from c2inet.options import check_range
 from c2inet.stream import ShiftDetector, StreamLearner
 from sim.cli import parse, parser
-from sim.curriculum import make_tasks
-from sim.data import cut_windows
+from sim.curriculum import knob_grid, make_tasks, scene_windows
 from sim.domains import domain_seed
 from sim.experiment import ExperimentConfig
-from sim.generators import Generator, child_seed, get_generator
+from sim.generators import child_seed
 from sim.outputs import write_report
-from sim.run import add_learning_options, learning_config
+from sim.run import add_learning_options, learning_config, method_names
 from sim.scenario import DomainSpec
 from viz.cli import bounded_float, bounded_int, guarded
 
@@ -64,17 +63,10 @@ class DriftOptions:
 
 
 def drift_specs(config: ExperimentConfig) -> list[DomainSpec]:
-    """The probe domains: one numeric family, at least two values."""
-    specs = config.specs()
-    families = {spec.family.name for spec in specs}
-    if len(families) != 1 or len(specs) < 2 or specs[0].family.values:
-        raise InputError(
-            f"scenario {config.scenario!r}: a drift needs one simulated family with two values "
-            "or more, e.g. crowd_noise_0.1..0.6"
-        )
-    if get_generator(specs[0].family.generator).rollout is Generator.rollout:
-        raise InputError(f"scenario {config.scenario!r}: family cannot simulate single scenes")
-    return specs
+    """The probe domains: one numeric family that can simulate single scenes, two values or
+    more."""
+    where = f"scenario {config.scenario!r} (a drift)"
+    return knob_grid(config.specs(), where, "crowd_noise_0.1..0.6", single_scenes=True)
 
 
 def drift_stream(
@@ -87,20 +79,12 @@ def drift_stream(
     """
     family, start, end = specs[0].family, specs[0].value, specs[-1].value
     values = np.linspace(start, end, options.scenes)
-    generator = get_generator(family.generator)()
     root = domain_seed(seed, replace(specs[0], label="drift"))
-    windows = []
-    for i, value in enumerate(values):
-        scene = generator.rollout(family.knobs_for(float(value)), child_seed(root, i), 20)
-        windows.append(cut_windows(scene))
+    seeds = [child_seed(root, i) for i in range(options.scenes)]
     bounds = np.linspace(0, options.scenes, options.chunks + 1).round().astype(int)
-    chunks = [
-        Windows.concat([w for w in windows[a:b] if w is not None])
-        for a, b in zip(bounds[:-1], bounds[1:], strict=True)
-    ]
-    middles = np.array(
-        [values[(a + b - 1) // 2] for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
-    )
+    pieces = list(zip(bounds[:-1], bounds[1:], strict=True))
+    chunks = [scene_windows(family, values[a:b], seeds[a:b]) for a, b in pieces]
+    middles = np.array([values[(a + b - 1) // 2] for a, b in pieces])
     return chunks, middles
 
 
@@ -290,8 +274,7 @@ def main(argv: list[str] | None = None) -> int:
     if args is None:
         return 0
     torch.set_num_threads(args.threads)
-    methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
-    config = learning_config(args, methods)
+    config = learning_config(args, method_names(args.methods))
     options = DriftOptions(args.scenes, args.chunks, args.boundaries, args.threshold)
     report = run_drift(config, options, args.cache, args.workers, args.memory_budget)
     write_drift(report, args.out)

@@ -102,14 +102,17 @@ def learning_config(args, methods: tuple[str, ...], scenario: str | None = None)
 def experiment_options(args) -> dict:
     """The fields of ``ExperimentConfig`` given by :func:`add_experiment_options`' options."""
     return {
-        "methods": (
-            tuple(sorted(discover()))
-            if args.methods.strip() == "all"
-            else tuple(n.strip() for n in args.methods.split(",") if n.strip())
-        ),
+        "methods": method_names(args.methods),
         **_trained(args),
         "record": not args.no_record,
     }
+
+
+def method_names(text: str) -> tuple[str, ...]:
+    """``--methods``: comma-separated names, or ``all`` for every registered method."""
+    if text.strip() == "all":
+        return tuple(sorted(discover()))
+    return tuple(name.strip() for name in text.split(",") if name.strip())
 
 
 def _trained(args) -> dict:

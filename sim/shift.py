@@ -22,10 +22,9 @@ import numpy as np
 import pyarrow.parquet as pq
 from scipy.stats import spearmanr
 
-from c2inet.errors import InputError
 from c2inet.files import write_atomic
 from sim.cli import parse, parser
-from sim.curriculum import make_tasks
+from sim.curriculum import knob_grid, make_tasks
 from sim.data import Domain
 from sim.experiment import Execution, ExperimentConfig
 from sim.fidelity import relative_difference
@@ -41,12 +40,8 @@ COUNTS = ("overlaps", "crashes")  # statistics that count events rather than mea
 
 def shift_grid(scenario: str, extra_dirs: list[Path]) -> tuple[DomainSpec, list[DomainSpec]]:
     """The base domain and the shifted ones of one ``--scenario``."""
-    specs = parse_scenario(scenario, extra_dirs)
-    if len(specs) < 2 or len({s.family.name for s in specs}) != 1 or specs[0].family.values:
-        raise InputError(
-            f"--scenario {scenario!r}: give one numeric family, the base value first and the "
-            "shifted ones after, e.g. crowd_noise_0.1..0.6"
-        )
+    where = f"--scenario {scenario!r} (the base value first, the shifted ones after)"
+    specs = knob_grid(parse_scenario(scenario, extra_dirs), where, "crowd_noise_0.1..0.6")
     return specs[0], specs[1:]
 
 

@@ -8,7 +8,7 @@ from c2inet.checker import CHECK_CONFIG
 from c2inet.data import Windows
 from c2inet.methods.base import get_method
 from c2inet.model import ModelConfig
-from c2inet.stream import ShiftDetector, StreamLearner, scene_features
+from c2inet.stream import ShiftDetector, StreamLearner
 from c2inet.trainer import ContinualTrainer
 
 from toys import turners, turning_tasks
@@ -67,19 +67,8 @@ def test_the_detector_fires_on_a_shift_and_not_on_more_of_the_same():
     assert calm == [False] * 5
     assert detector(turners(0.3, 30, 9))  # three times the turn rate
     assert not detector(turners(0.3, 30, 10))  # the new regime is now the reference
-
-
-def test_scene_features_measure_speed_turning_and_closeness():
-    slow = turners(0.1, 20, 0)
-    fast = Windows(slow.positions * 2, slow.scene_start)
-    f_slow, f_fast = scene_features(slow), scene_features(fast)
-    assert f_slow.shape == (20, 3)
-    np.testing.assert_allclose(f_fast[:, 0], 2 * f_slow[:, 0], rtol=1e-5)
-    np.testing.assert_allclose(f_fast[:, 1], f_slow[:, 1], rtol=1e-3)  # the same turns
-    np.testing.assert_allclose(f_fast[:, 2], 2 * f_slow[:, 2], rtol=1e-5)
-    assert scene_features(turners(0.3, 20, 0))[:, 1].mean() > 2 * f_slow[:, 1].mean()
-    lone = Windows(slow.positions[:1], np.array([0, 1]))
-    assert np.isnan(scene_features(lone)[0, 2])
+    fast = turners(0.3, 30, 11)
+    assert detector(Windows(fast.positions * 1.5, fast.scene_start))  # half as fast again
 
 
 def test_disagreement_is_zero_for_a_deterministic_predictor():

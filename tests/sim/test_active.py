@@ -47,8 +47,8 @@ def test_needs_rank_grid_values_by_error_relative_error_and_spread():
 @pytest.mark.parametrize(
     "argv,message",
     [
-        (["--scenario", "crowd_noise_0.1", "--quick"], "a grid"),
-        (["--scenario", "eth_ucy_eth,hotel", "--quick"], "a grid"),
+        (["--scenario", "crowd_noise_0.1", "--quick"], "an active curriculum's grid"),
+        (["--scenario", "eth_ucy_eth,hotel", "--quick"], "an active curriculum's grid"),
         (["--scenario", "crowd_noise_0.1,0.2", "--strategies", "best"], "best"),
     ],
 )

@@ -53,7 +53,7 @@ def test_forgetting_without_boundaries_counts_from_where_the_stream_reached_a_pr
 @pytest.mark.parametrize(
     "argv,message",
     [
-        (["--scenario", "eth_ucy_eth,hotel"], "one simulated family"),
+        (["--scenario", "eth_ucy_eth,hotel"], "give one numeric family"),
         (["--scenario", "crowd_noise_0.1..0.3", "--chunks", "0"], "--chunks"),
         (["--scenario", "crowd_noise_0.1..0.3", "--memory-budget", "0.001"], "memory budget"),
     ],
