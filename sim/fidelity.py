@@ -51,8 +51,8 @@ def compare_statistics(generated: Domain, reference: Domain) -> dict[str, Any]:
     stats, profiles = {}, {}
     for side, domain in zip(SIDES, (generated, reference), strict=True):
         scenes = [scene for split in domain.scenes.values() for scene in split]
-        stats[side] = realised_summary(scenes, domain.dt)
         profiles[side] = scene_profiles(scenes, domain.dt)
+        stats[side] = realised_summary(scenes, domain.dt, profiles[side])
     relative = {
         name: relative_difference(stats["generated"][name], value)
         for name, value in stats["reference"].items()

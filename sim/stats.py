@@ -117,11 +117,13 @@ def scene_profiles(scenes: list[Scene], dt: float) -> dict[str, np.ndarray]:
     return out
 
 
-def realised_summary(scenes: list[Scene], dt: float) -> dict[str, float]:
+def realised_summary(
+    scenes: list[Scene], dt: float, profiles: dict[str, np.ndarray] | None = None
+) -> dict[str, float]:
     """The statistics a generated family must match its reference on: minimum separation and
     median closest approach (m), mean speed (m/s), heading change per frame (rad) and speed
-    over the first step (m/s)."""
-    profiles = scene_profiles(scenes, dt)
+    over the first step (m/s). ``profiles``: the scenes' :func:`scene_profiles`, when at hand."""
+    profiles = profiles if profiles is not None else scene_profiles(scenes, dt)
     moves = motion_stats(scenes, dt)
     return {
         "min_separation": float(np.nanmin(profiles["closest"])),

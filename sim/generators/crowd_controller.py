@@ -61,18 +61,22 @@ class Controller:
         constants = self.contact, self.dt, self.max_speed, self.noise_decay, self.noise_kick
         if self.kind == "ttc":
             return _steer(state, goal, speed, noise, kicks, self.scene_size, *constants)
-        neighbours = self.orca_neighbours(state)
+        ahead = state.copy()  # where this step takes every agent: ORCA plans from there
+        ahead[:, :2] += self.dt * state[:, 2:]
+        neighbours = orca_neighbours(ahead[:, :2])
         orca = (*constants, self.horizon, self.lane)
-        return _steer_orca(state, goal, speed, noise, kicks, neighbours, self.scene_size, orca)
+        return _steer_orca(
+            state, ahead, goal, speed, noise, kicks, neighbours, self.scene_size, orca
+        )
 
-    def orca_neighbours(self, state: np.ndarray) -> np.ndarray:
-        """Each agent's ``ORCA_NEIGHBOURS`` nearest others within ``ORCA_RANGE`` where this step
-        takes them, nearest first, as RVO2 picks them (padding: ``len(state)``). Scenes lie
-        farther apart than that range, so no agent sees another scene."""
-        ahead = state[:, :2] + self.dt * state[:, 2:]
-        k = min(ORCA_NEIGHBOURS + 1, len(state))
-        _, index = cKDTree(ahead).query(ahead, k=k, distance_upper_bound=ORCA_RANGE)
-        return index.reshape(len(state), k)
+
+def orca_neighbours(positions: np.ndarray) -> np.ndarray:
+    """Each agent's ``ORCA_NEIGHBOURS`` nearest others within ``ORCA_RANGE``, nearest first, as
+    RVO2 picks them (padding: ``len(positions)``). Scenes lie farther apart than that range, so
+    no agent sees another scene."""
+    k = min(ORCA_NEIGHBOURS + 1, len(positions))
+    _, index = cKDTree(positions).query(positions, k=k, distance_upper_bound=ORCA_RANGE)
+    return index.reshape(len(positions), k)
 
 
 @njit(cache=True)
@@ -102,20 +106,18 @@ def _steer(state, goal, speed, noise, kicks, scene_size, contact, dt, max_speed,
 
 
 @njit(cache=True)
-def _steer_orca(state, goal, speed, noise, kicks, neighbours, scene_size, constants):
-    """``Controller.steer`` with ORCA, compiled. ORCA sees each agent where its current velocity
-    takes it within this step, because Chipmunk moves a body before it applies the force set now:
-    the chosen velocity starts to act from there, as in RVO2. Where ORCA's program has no
-    solution (dense crowds), ``hold_apart`` keeps the pairs it would leave overlapping apart,
-    and it keeps agents off the corridor's walls, which ORCA does not see."""
+def _steer_orca(state, ahead, goal, speed, noise, kicks, neighbours, scene_size, constants):
+    """``Controller.steer`` with ORCA, compiled. ORCA sees each agent ``ahead``, where its
+    current velocity takes it within this step, because Chipmunk moves a body before it applies
+    the force set now: the chosen velocity starts to act from there, as in RVO2. Where ORCA's
+    program has no solution (dense crowds), ``hold_apart`` keeps the pairs it would leave
+    overlapping apart, and it keeps agents off the corridor's walls, which ORCA does not see."""
     contact, dt, max_speed, decay, kick, horizon, lane = constants
     preferred = _preferred(state, goal, speed, noise, kicks, decay, kick)
     limit = np.empty(len(state))
     for i in range(len(state)):
         wish = math.sqrt(preferred[i, 0] ** 2 + preferred[i, 1] ** 2)
         limit[i] = min(max_speed, max(speed[i], wish))  # never faster than the agent wishes
-    ahead = state.copy()
-    ahead[:, :2] += dt * state[:, 2:]
     velocity = orca_velocities(ahead, preferred, limit, neighbours, contact, horizon, dt)
     near = neighbour_pairs(ahead, scene_size, contact + 2 * max_speed * dt)
     hold_apart(ahead, velocity, near, contact, dt, lane)

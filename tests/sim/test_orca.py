@@ -10,19 +10,12 @@ from c2inet.errors import InputError
 from sim.domains import build_domain
 from sim.fidelity import TOLERANCE, relative_difference
 from sim.generators.crowd import CrowdKnobs, simulate
-from sim.generators.crowd_controller import ORCA_RANGE
+from sim.generators.crowd_controller import ORCA_RANGE, orca_neighbours
 from sim.generators.orca import orca_velocities
 from sim.scenario import parse_scenario
 from sim.stats import realised_summary
 
 FIXTURE = Path(__file__).parent / "data" / "rvo2_velocities.npz"  # benchmarks/orca_reference.py
-
-
-def rvo2_neighbours(position: np.ndarray) -> np.ndarray:
-    """RVO2's choice: the 10 nearest within 10 m, nearest first (the first is the agent)."""
-    k = min(11, len(position))
-    _, index = cKDTree(position).query(position, k=k, distance_upper_bound=10.0)
-    return index.reshape(len(position), k)
 
 
 def test_orca_matches_rvo2():
@@ -35,7 +28,7 @@ def test_orca_matches_rvo2():
         start += int(agents)
         state, wish = data["state"][rows], data["preferred"][rows]
         ours = orca_velocities(
-            state, wish, np.full(len(state), 1.5), rvo2_neighbours(state[:, :2]), 2 * radius,
+            state, wish, np.full(len(state), 1.5), orca_neighbours(state[:, :2]), 2 * radius,
             horizon, 0.1,
         )  # fmt: skip
         errors.append(np.abs(ours - data["velocity"][rows]).max(axis=1))
