@@ -5,8 +5,8 @@ visible in X at all?) and from the backbone's context. For C2INet's model, also:
 in nats, an estimate of MI(X; C), the probe from C's posterior mean, the queue (size, weights,
 each task's share of the responsibilities), ADE with C at its posterior mean against C from one
 prior sample (and how far that moves the prediction), and confounder recovery: the adjusted
-Rand index and NMI between each agent's most responsible component and its true domain, and the
-cross-validated R^2 of the knob value predicted from C.
+Rand index and NMI between each agent's most responsible component's owner task and its true
+domain, and the cross-validated R^2 of the knob value predicted from C.
 """
 
 from __future__ import annotations
@@ -25,7 +25,13 @@ from sklearn.preprocessing import StandardScaler
 
 from c2inet.batch import make_batch
 from c2inet.data import Windows
-from c2inet.prior import gaussian_log_prob, gaussian_sample, kl_standard_normal
+from c2inet.prior import (
+    gaussian_log_prob,
+    gaussian_sample,
+    kl_standard_normal,
+    minibatch_mutual_information,
+    responsibilities,
+)
 
 PROBE_FOLDS = 4
 MI_INPUTS = 2000  # inputs of the MI estimate (its cost grows with their square)
@@ -96,10 +102,7 @@ def mutual_information(mean: torch.Tensor, logvar: torch.Tensor, samples: int = 
     Over n inputs it is at most log n: read it against that bound.
     """
     c = gaussian_sample(mean, logvar, torch.randn(samples, *mean.shape))  # (S, n, d)
-    own = gaussian_log_prob(c, mean, logvar)  # (S, n)
-    cross = gaussian_log_prob(c[:, :, None], mean[None, None], logvar[None, None])  # (S, n, n)
-    aggregate = torch.logsumexp(cross, dim=-1) - math.log(len(mean))
-    return float((own - aggregate).mean())
+    return float(minibatch_mutual_information(c, mean, logvar))
 
 
 def _rounded(value: float | None) -> float | None:
@@ -139,11 +142,12 @@ def _confounder(model, batches, labels, values, seed) -> dict[str, Any]:
     c_mean = torch.cat([p.c_mean for p in posts])
     c_logvar = torch.cat([p.c_logvar for p in posts])
     out: dict[str, Any] = {"kl_c": [], "kl_z": [], "ade_c_mean": [], "ade_c_prior": []}
+    prior = queue.training_prior()  # the prior the KL was trained against
     shifts = []
     for batch, post in zip(batches, posts, strict=True):
         c = gaussian_sample(post.c_mean, post.c_logvar, torch.randn(cfg.n_mc, *post.c_mean.shape))
-        kl_c = (gaussian_log_prob(c, post.c_mean, post.c_logvar) - queue.log_prob(c)).mean(0)
-        kl_z = kl_standard_normal(post.z_mean, post.z_logvar)
+        kl_c = (gaussian_log_prob(c, post.c_mean, post.c_logvar) - prior.log_prob(c)).mean(0)
+        kl_z = kl_standard_normal(*model.z_posterior(batch, post, c)).mean(0)
         out["kl_c"].append(_rounded(model.per_scene(kl_c, batch).mean()))
         out["kl_z"].append(_rounded(batch.per_scene_mean(kl_z).mean()))
         at_mean = model.predict(batch, 1, "posterior_mean", z_mean=True, post=post)[0]
@@ -163,8 +167,7 @@ def _confounder(model, batches, labels, values, seed) -> dict[str, Any]:
     out["mi_bound"] = _rounded(math.log(len(subset)))
     out["probe_c"] = _rounded(probe_accuracy(c_scene.numpy(), labels, seed))
     mixture = queue.mixture
-    per = gaussian_log_prob(c_mean[:, None], mixture.means, mixture.logvars)
-    responsibility = torch.softmax(per + mixture.weights.clamp_min(1e-30).log(), dim=-1)
+    responsibility = responsibilities(mixture, c_mean, c_logvar)  # p(k | X), (n, K)
     owners = torch.tensor(queue.owners)
     tasks = len(batches)
     share = [
@@ -180,13 +183,14 @@ def _confounder(model, batches, labels, values, seed) -> dict[str, Any]:
         "owners": list(queue.owners),
         "share": share,  # share[j][i]: responsibility of task i's components on task j's scenes
     }
-    component = responsibility.argmax(-1).numpy()
+    # each agent's most responsible component's owner task, against its true domain
+    owner_task = owners[responsibility.argmax(-1)].numpy()
     domain = np.repeat(labels, counts)
     if model.c_per_scene:
-        component = np.repeat(component, counts)
+        owner_task = np.repeat(owner_task, counts)
     if tasks > 1:
-        out["ari"] = _rounded(adjusted_rand_score(domain, component))
-        out["nmi"] = _rounded(normalized_mutual_info_score(domain, component))
+        out["ari"] = _rounded(adjusted_rand_score(domain, owner_task))
+        out["nmi"] = _rounded(normalized_mutual_info_score(domain, owner_task))
     if all(v is not None for v in values):
         knob = np.array([values[i] for i in labels], dtype=np.float64)
         out["knob_r2"] = _rounded(knob_r2(c_scene.numpy(), knob, seed))

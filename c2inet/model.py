@@ -1,11 +1,13 @@
 """Trajectory predictors: a backbone whose decoder is conditioned on a vector with a random part.
 
 The plain predictor conditions its decoder on the encoder's context and noise drawn from
-N(0, I) (the baselines). :class:`C2INetModel` conditions it on two latents alone, Z (invariant)
-and the confounder C (variant), so all it knows of the past passes through them (the bottleneck
-of GCRL); C is scored against the prior queue. Displacements are divided by
-each scene's own motion scale (``Batch.scale``, from observed frames only) and predictions
-multiplied back, so pedestrians and vehicles alike reach the network at unit size.
+N(0, I) (the baselines). :class:`C2INetModel` follows the paper's Eq 16,
+P(Y|do(X)) = sum_{Z,C} P(Y|X,Z,C) P(Z|X,C) P(C): its decoder sees the context beside the two
+latents, Z (invariant) is inferred given the confounder C, and C is scored against the prior
+queue. The earlier bottleneck (the decoder sees [z, c] alone, as GCRL) stays an option
+(``decoder_input="latents"``). Displacements are divided by each scene's own motion scale
+(``Batch.scale``, from observed frames only) and predictions multiplied back, so pedestrians
+and vehicles alike reach the network at unit size.
 """
 
 from __future__ import annotations
@@ -29,15 +31,20 @@ from c2inet.prior import (
     gaussian_log_prob,
     gaussian_sample,
     kl_standard_normal,
+    minibatch_mutual_information,
+    responsibilities,
     symmetric_kl,
 )
 
-C_SOURCES = ("prior", "posterior", "posterior_mean")
+C_SOURCES = ("posterior", "prior", "responsible")  # the test-time rules for C
+DECODER_INPUTS = ("context", "latents")
+PAST_INPUTS = ("z", "zc")
 
 
 @dataclass
 class ModelConfig:
-    """Sizes and loss weights shared by every learner (defaults: method notes, sections 4-5)."""
+    """Sizes and loss weights shared by every learner (defaults: method notes, sections 4-5, and
+    the recorded sweep of ``docs/c2inet-study.md``)."""
 
     backbone: str = "stgat"
     latent_dim: int = 16  # noise size of the baselines; C2INet uses z_dim + c_dim
@@ -46,10 +53,18 @@ class ModelConfig:
     likelihood_std: float = 0.1  # std of the Gaussian likelihood, in units of the scene scale
     beta_c: float = 1.0
     beta_z: float = 1.0
-    beta_x: float = 1.0  # weight of the past reconstruction log p(X | z, c)
+    beta_x: float = 0.0  # weight of the past reconstruction log p(X | z[, c]); 1 cost plasticity
     n_mc: int = 10  # Monte Carlo samples for the KL to the mixture and the past likelihood
-    c_source: str = "prior"  # test-time C: prior (the back-door average, Eq 16) | posterior
-    c_per: str = "agent"  # one C per agent (GCRL, method notes 7.8) or per scene
+    # test-time C: posterior (Q(C|X), GCRL's practice), prior (Eq 16 literally: C ~ P(C)), or
+    # responsible (the queue component responsible for the observed past, then C from it)
+    c_source: str = "posterior"
+    c_per: str = "agent"  # one C per agent (GCRL, method notes 7.8) or per scene, train and test
+    decoder_input: str = "context"  # P(Y|X,Z,C): [context, z, c]; "latents": [z, c] alone
+    z_given_c: bool = True  # Q(Z|X,C) as Eq 16; off: Q(Z|X)
+    past_from: str = "z"  # the past reconstruction reads z alone, or [z, c] ("zc")
+    free_bits_c: float = 8.0  # KL_C below this many nats (1 per dimension) costs nothing
+    mi_floor_c: float = 0.0  # MI(X; C) of a batch below this many nats is penalised (liveness)
+    mi_weight: float = 10.0  # the penalty per missing nat
     residual: bool = True  # decoder steps change the last displacement (constant-velocity prior)
 
     def __post_init__(self):
@@ -57,12 +72,18 @@ class ModelConfig:
             raise ValueError(
                 f"backbone {self.backbone!r} is unknown (known: {', '.join(BACKBONES)})"
             )
-        if self.c_source not in ("prior", "posterior"):
-            raise ValueError(f"c_source {self.c_source!r}: expected prior or posterior")
-        if self.c_per not in ("agent", "scene"):
-            raise ValueError(f"c_per {self.c_per!r}: expected agent or scene")
+        for name, allowed in (
+            ("c_source", C_SOURCES),
+            ("c_per", ("agent", "scene")),
+            ("decoder_input", DECODER_INPUTS),
+            ("past_from", PAST_INPUTS),
+        ):
+            if getattr(self, name) not in allowed:
+                raise ValueError(
+                    f"{name} {getattr(self, name)!r}: expected one of {', '.join(allowed)}"
+                )
         require(self, 1, "latent_dim", "z_dim", "c_dim", "n_mc")
-        require(self, 0, "beta_c", "beta_z", "beta_x")
+        require(self, 0, "beta_c", "beta_z", "beta_x", "free_bits_c", "mi_floor_c", "mi_weight")
         require(self, 0, "likelihood_std", open_low=True)
 
 
@@ -149,10 +170,12 @@ class GaussianHead(nn.Module):
 
 @dataclass
 class Posteriors:
-    """Q(Z|X) per agent (N, dz) and Q(C|X) per agent (N, dc) or per scene (B, dc)."""
+    """The backbone's context per agent (N, H) and Q(C|X) per agent (N, dc) or per scene (B, dc).
 
-    z_mean: torch.Tensor
-    z_logvar: torch.Tensor
+    Q(Z|X,C) depends on the drawn C, so it is asked for with :meth:`C2INetModel.z_posterior`.
+    """
+
+    context: torch.Tensor
     c_mean: torch.Tensor
     c_logvar: torch.Tensor
 
@@ -161,11 +184,12 @@ class Posteriors:
 class Anchors:
     """What the network did at samples of old prior components, to hold it there (BooVAE).
 
-    Latents [z, c] with z ~ N(0, I) and c from a task's components, the pseudo-input the past
-    decoder made of them (single-agent scenes), and what the decoder and Q(C|X) gave then.
+    Latents with z ~ N(0, I) and c from a task's components, the pseudo-input the past decoder
+    made of them (single-agent scenes), the decoder's full condition there and what it gave, and
+    Q(C|X) at the pseudo-inputs.
     """
 
-    cond: torch.Tensor  # (A, dz + dc)
+    cond: torch.Tensor  # (A, D) the decoder's condition ([context,] z, c)
     last_rel: torch.Tensor  # (A, 2) the pseudo-input's last displacement (normalised)
     future: torch.Tensor  # (12, A, 2) the decoder's output when stored
     inputs: Windows  # the pseudo-inputs (observed frames; the future is unused)
@@ -207,13 +231,15 @@ class Anchors:
 
 
 class C2INetModel(Predictor):
-    """C2INet: latents Z and C, the decoder conditioned on [z, c] alone.
+    """C2INet: latents Z and C; the decoder sees the context and [z, c] (Eq 16's P(Y|X,Z,C)).
 
-    Separate trunks read the backbone's context: Q(Z|X) from each agent's, Q(C|X) from each
-    agent's too, or from the scene's mean context with ``c_per="scene"`` (one confounder shared
-    by a scene's agents). A past decoder reconstructs the observed displacements from [z, c]
-    (GCRL's E1), and C is scored against the prior queue's training prior (its KL, Eq 10), or
-    against a learnt ``prior`` (the MoG and GCRL baselines).
+    Separate trunks read the backbone's context: Q(C|X) from each agent's, or from the scene's
+    mean context with ``c_per="scene"`` (one confounder shared by a scene's agents), and
+    Q(Z|X,C) from the agent's context and its drawn C (``z_given_c``). A past decoder
+    reconstructs the observed displacements from z (``past_from="z"``) or [z, c] (GCRL's E1).
+    C is scored against the prior queue's training prior (its KL, Eq 10/17), or against a
+    learnt ``prior`` (the MoG and GCRL baselines). ``decoder_input="latents"`` is the old
+    bottleneck: the decoder then knows the past only through [z, c].
     """
 
     def __init__(
@@ -222,15 +248,21 @@ class C2INetModel(Predictor):
         queue: QueueConfig | None = None,
         prior: LearnablePrior | None = None,
     ):
-        super().__init__(config, cond_dim=config.z_dim + config.c_dim)
-        width = self.backbone.context_dim
-        self.to_z = GaussianHead(width, config.z_dim)
+        width = BACKBONES[config.backbone].context_dim
+        latents = config.z_dim + config.c_dim
+        super().__init__(config, cond_dim=latents + (width if self.sees_context(config) else 0))
+        self.to_z = GaussianHead(width + (config.c_dim if config.z_given_c else 0), config.z_dim)
         self.to_c = GaussianHead(width, config.c_dim)
+        past_dim = config.z_dim + (config.c_dim if config.past_from == "zc" else 0)
         self.past = nn.Sequential(
-            nn.Linear(config.z_dim + config.c_dim, 64), nn.Tanh(), nn.Linear(64, 2 * (OBS_LEN - 1))
+            nn.Linear(past_dim, 64), nn.Tanh(), nn.Linear(64, 2 * (OBS_LEN - 1))
         )
         self.queue = PriorQueue(config.c_dim, queue) if prior is None else prior
         self.anchors: Anchors | None = None  # stored after each task by the method
+
+    @staticmethod
+    def sees_context(config: ModelConfig) -> bool:
+        return config.decoder_input == "context"
 
     @property
     def c_per_scene(self) -> bool:
@@ -239,50 +271,73 @@ class C2INetModel(Predictor):
     def posteriors(self, batch: Batch) -> Posteriors:
         context = self.context(batch)
         c_input = batch.pool(context) if self.c_per_scene else context
-        return Posteriors(*self.to_z(context), *self.to_c(c_input))
+        return Posteriors(context, *self.to_c(c_input))
+
+    def per_agent(self, c: torch.Tensor, batch: Batch) -> torch.Tensor:
+        """C (S, N or B, dc) as one row per agent (S, N, dc)."""
+        return c[:, batch.scene_of] if self.c_per_scene else c
+
+    def z_posterior(
+        self, batch: Batch, post: Posteriors, c: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Q(Z|X,C) at each drawn C: mean and log-variance (S, N, dz) (Q(Z|X) broadcast when
+        ``z_given_c`` is off)."""
+        context = post.context.expand(len(c), *post.context.shape)
+        if self.config.z_given_c:
+            context = torch.cat([context, self.per_agent(c, batch)], -1)
+        return self.to_z(context)
+
+    def sample_c(self, batch: Batch, post: Posteriors, samples: int, c_source: str):
+        """``samples`` draws of C (S, N or B, dc) by a test-time rule, or at the posterior mean
+        (``posterior_mean``); one C per agent, or per scene with ``c_per="scene"``, as trained."""
+        mc, lc = post.c_mean, post.c_logvar
+        mixture = self.queue.mixture
+        if c_source == "posterior":
+            return gaussian_sample(mc, lc, torch.randn(samples, *mc.shape))
+        if c_source == "posterior_mean":
+            return mc.expand(samples, *mc.shape)
+        if c_source == "prior":  # the back-door average over P(C), Eq 16
+            return mixture.sample(samples * len(mc)).view(samples, len(mc), -1)
+        if c_source == "responsible":  # k ~ p(k | X), then c from component k
+            weights = responsibilities(mixture, mc, lc)  # (n, K)
+            k = torch.multinomial(weights, samples, replacement=True).T  # (S, n)
+            noise = torch.randn(samples, *mc.shape)
+            return gaussian_sample(mixture.means[k], mixture.logvars[k], noise)
+        raise ValueError(f"c_source {c_source!r}: expected one of {', '.join(C_SOURCES)}")
 
     def latents(
         self, batch: Batch, post: Posteriors, samples: int, c_source: str, z_mean: bool = False
-    ) -> tuple[torch.Tensor, torch.Tensor]:
-        """Samples of Z (S, N, dz) and C (S, N or B, dc).
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """C (S, N or B, dc) by ``c_source``, then Z (S, N, dz) from Q(Z|X,C) (at its mean with
+        ``z_mean``), with Q(Z|X,C)'s mean and log-variance."""
+        c = self.sample_c(batch, post, samples, c_source)
+        mz, lz = self.z_posterior(batch, post, c)
+        z = mz if z_mean else gaussian_sample(mz, lz, torch.randn_like(mz))
+        return z, c, mz, lz
 
-        C from the queue's mixture (``prior``), the posterior, or the posterior's mean; Z from
-        its posterior, or at its mean with ``z_mean``.
-        """
-        mz, lz, mc, lc = post.z_mean, post.z_logvar, post.c_mean, post.c_logvar
-        scenes, scene_of = batch.num_scenes, batch.scene_of
-        if z_mean:
-            z = mz.expand(samples, *mz.shape)
-        else:
-            z = gaussian_sample(mz, lz, torch.randn(samples, *mz.shape))
-        if c_source == "prior":  # the back-door average over P(C), Eq 16: one C per scene
-            c = self.queue.mixture.sample(samples * scenes).view(samples, scenes, -1)
-            if not self.c_per_scene:
-                c = c[:, scene_of]
-        elif c_source == "posterior":
-            c = gaussian_sample(mc, lc, torch.randn(samples, *mc.shape))
-        elif c_source == "posterior_mean":
-            c = mc.expand(samples, *mc.shape)
-        else:
-            raise ValueError(f"c_source {c_source!r}: expected one of {', '.join(C_SOURCES)}")
-        return z, c
-
-    def conditions(self, batch: Batch, z: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
-        """[z, c] per agent (S, N, dz + dc); with C per scene each agent gets its scene's."""
-        return torch.cat([z, c[:, batch.scene_of] if self.c_per_scene else c], -1)
+    def conditions(
+        self, batch: Batch, post: Posteriors, z: torch.Tensor, c: torch.Tensor
+    ) -> torch.Tensor:
+        """The decoder's condition per agent (S, N, D): [context, z, c], or [z, c]."""
+        parts = [z, self.per_agent(c, batch)]
+        if self.sees_context(self.config):
+            parts.insert(0, post.context.expand(len(z), *post.context.shape))
+        return torch.cat(parts, -1)
 
     def per_scene(self, per_c: torch.Tensor, batch: Batch) -> torch.Tensor:
         """A figure per C (..., N or B) as a per-scene figure (..., B)."""
         return per_c if self.c_per_scene else batch.per_scene_mean(per_c)
 
-    def reconstruct_past(self, cond: torch.Tensor) -> torch.Tensor:
-        """Normalised observed displacements (T_obs - 1, S, N, 2) decoded from [z, c]."""
-        return self.past(cond).unflatten(-1, (OBS_LEN - 1, 2)).movedim(-2, 0)
+    def reconstruct_past(self, z: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
+        """Normalised observed displacements (T_obs - 1, S, N, 2) decoded from z (or [z, c]),
+        both per agent."""
+        source = torch.cat([z, c], -1) if self.config.past_from == "zc" else z
+        return self.past(source).unflatten(-1, (OBS_LEN - 1, 2)).movedim(-2, 0)
 
     def _protection(self) -> tuple[Anchors | None, bool, bool]:
         """A random batch of the stored anchors, and which regularisers are on."""
         q = self.queue.config
-        if self.anchors is None or not q.divergence:
+        if self.anchors is None or not (q.distill_decoder or q.distill_encoder):
             return None, False, False
         anchors = self.anchors.select(torch.randperm(len(self.anchors))[: q.anchor_batch])
         return anchors, q.distill_decoder, q.distill_encoder
@@ -318,29 +373,41 @@ class C2INetModel(Predictor):
         return held
 
     def loss(self, batch: Batch, k_train: int = 1) -> LossOutput:
-        """Eq 10 with the variety loss over ``k_train`` samples, plus the queue's penalties."""
+        """Eq 10 with the variety loss over ``k_train`` samples, plus the queue's penalties.
+
+        KL_C is taken against the queue's training prior (the whole mixture, Eq 17, unless
+        ``task_kl``), with ``free_bits_c`` nats per C free; KL_Z is Q(Z|X,C)'s against N(0, I).
+        A batch whose MI(X; C) falls below ``mi_floor_c`` pays ``mi_weight`` per missing nat:
+        with the context beside it, the decoder needs nothing from C, and free bits alone left
+        it collapsed (issue 22), so liveness is asked for rather than hoped for.
+        """
         cfg = self.config
         anchors, hold_decoder, hold_encoder = self._protection()
         post = self.posteriors(batch)
-        z, c = self.latents(batch, post, max(k_train, cfg.n_mc), "posterior")
-        cond = self.conditions(batch, z, c)
+        z, c, mz, lz = self.latents(batch, post, max(k_train, cfg.n_mc), "posterior")
+        cond = self.conditions(batch, post, z, c)
         pred, anchor_future = self._decode(batch, cond[:k_train], anchors if hold_decoder else None)
         future = variety_loss(self.nll(batch, pred), batch)
-        past_error = (
-            self.reconstruct_past(cond[: cfg.n_mc]) - (batch.obs_rel[1:] / batch.scale)[:, None]
-        )
+        mc = cfg.n_mc
+        past = self.reconstruct_past(z[:mc], self.per_agent(c[:mc], batch))
+        past_error = past - (batch.obs_rel[1:] / batch.scale)[:, None]
         nll_x = (past_error**2).sum(dim=(0, 3)).mean(0) / (2 * cfg.likelihood_std**2)
-        log_q = gaussian_log_prob(c[: cfg.n_mc], post.c_mean, post.c_logvar)
-        kl_c = (log_q - self.queue.training_prior().log_prob(c[: cfg.n_mc])).mean(0)
+        log_q = gaussian_log_prob(c[:mc], post.c_mean, post.c_logvar)
+        kl_c = (log_q - self.queue.training_prior().log_prob(c[:mc])).mean(0)
         kl_c = self.per_scene(kl_c, batch)  # (B,)
-        kl_z = kl_standard_normal(post.z_mean, post.z_logvar)
+        kl_z = kl_standard_normal(mz[:mc], lz[:mc]).mean(0)
         per_agent = batch.per_scene_mean(cfg.beta_x * nll_x + cfg.beta_z * kl_z)
-        loss = future + per_agent.mean() + cfg.beta_c * kl_c.mean()
+        kl_c_cost = kl_c.clamp_min(cfg.free_bits_c) if cfg.free_bits_c else kl_c
+        loss = future + per_agent.mean() + cfg.beta_c * kl_c_cost.mean()
+        mi = minibatch_mutual_information(c[:mc], post.c_mean, post.c_logvar)
+        if cfg.mi_floor_c and cfg.mi_weight:
+            loss = loss + cfg.mi_weight * (cfg.mi_floor_c - mi).clamp_min(0)
         parts = {
             "nll": future.item(),
             "nll_past": batch.per_scene_mean(nll_x).mean().item(),
             "kl_c": kl_c.mean().item(),
             "kl_z": batch.per_scene_mean(kl_z).mean().item(),
+            "mi_c": mi.item(),
         }
         if anchors is not None:
             for name, held in self._held(anchors, anchor_future, hold_encoder).items():
@@ -349,9 +416,10 @@ class C2INetModel(Predictor):
         return LossOutput(loss, parts, pred)
 
     def point(self, batch: Batch) -> torch.Tensor:
-        """The prediction at the posterior means of Z and C, (12, N, 2), differentiable."""
-        z, c = self.latents(batch, self.posteriors(batch), 1, "posterior_mean", z_mean=True)
-        return self.decode(batch, self.conditions(batch, z, c))[:, 0]
+        """The prediction at the posterior means of C and then Z, (12, N, 2), differentiable."""
+        post = self.posteriors(batch)
+        z, c, _, _ = self.latents(batch, post, 1, "posterior_mean", z_mean=True)
+        return self.decode(batch, self.conditions(batch, post, z, c))[:, 0]
 
     @torch.no_grad()
     def predict(
@@ -362,30 +430,30 @@ class C2INetModel(Predictor):
         z_mean: bool = False,
         post: Posteriors | None = None,
     ) -> torch.Tensor:
-        """K sampled futures in metres (K, 12, N, 2); C from ``c_source`` (default: config).
-
-        ``post``: the batch's posteriors, when the caller has them already.
-        """
+        """K sampled futures in metres (K, 12, N, 2): C by ``c_source`` (default: config), then
+        Z from Q(Z|X,C). ``post``: the batch's posteriors, when the caller has them already."""
         post = self.posteriors(batch) if post is None else post
-        z, c = self.latents(batch, post, samples, c_source or self.config.c_source, z_mean)
-        return to_positions(batch, self.decode(batch, self.conditions(batch, z, c)))
+        z, c, _, _ = self.latents(batch, post, samples, c_source or self.config.c_source, z_mean)
+        return to_positions(batch, self.decode(batch, self.conditions(batch, post, z, c)))
 
     def evaluation_variants(self) -> dict[str, dict]:
-        other = "posterior" if self.config.c_source == "prior" else "prior"
-        return {f"c_{other}": {"c_source": other}}
+        """Every test-time rule but the default, scored beside it (``ade_c_prior`` ...)."""
+        return {f"c_{s}": {"c_source": s} for s in C_SOURCES if s != self.config.c_source}
 
 
 @torch.no_grad()
 def make_anchors(model: C2INetModel, components: GaussianMixture, count: int) -> Anchors:
     """Anchors of one task: latents from its components and what the network made of them."""
-    cond = torch.cat([torch.randn(count, model.config.z_dim), components.sample(count)], -1)
-    past = model.reconstruct_past(cond[None])[:, 0]  # (7, A, 2)
+    z, c = torch.randn(1, count, model.config.z_dim), components.sample(count)[None]
+    past = model.reconstruct_past(z, c)[:, 0]  # (7, A, 2)
     observed = torch.cat([torch.zeros(1, count, 2), past.cumsum(0)])  # (8, A, 2)
     frames = torch.cat([observed, observed[-1:].expand(12, count, 2)])  # the future is unused
     inputs = Windows(frames.transpose(0, 1).numpy().copy(), np.arange(count + 1))
-    future = model.backbone.decode(cond[None], past[-1])[:, 0]
-    post = model.posteriors(make_batch(inputs))
-    return Anchors(cond, past[-1], future, inputs, post.c_mean, post.c_logvar)
+    batch = make_batch(inputs)
+    post = model.posteriors(batch)
+    cond = model.conditions(batch, post, z, c)  # single-agent scenes: per scene is per agent
+    future = model.backbone.decode(cond, past[-1])[:, 0]
+    return Anchors(cond[0], past[-1], future, inputs, post.c_mean, post.c_logvar)
 
 
 class ConstantVelocity(nn.Module):

@@ -32,6 +32,17 @@ def kl_standard_normal(mean: torch.Tensor, logvar: torch.Tensor) -> torch.Tensor
     return 0.5 * (logvar.exp() + mean**2 - 1 - logvar).sum(-1)
 
 
+def minibatch_mutual_information(
+    c: torch.Tensor, mean: torch.Tensor, logvar: torch.Tensor
+) -> torch.Tensor:
+    """MI(X; C) in nats from one draw c_i ~ Q(C|x_i) per input, (n, d) each:
+    mean_i [log q(c_i|x_i) - log (1/n) sum_j q(c_i|x_j)], at most log n (differentiable)."""
+    own = gaussian_log_prob(c, mean, logvar)  # (..., n)
+    cross = gaussian_log_prob(c.unsqueeze(-2), mean.unsqueeze(-3), logvar.unsqueeze(-3))
+    aggregate = torch.logsumexp(cross, dim=-1) - math.log(mean.shape[-2])
+    return (own - aggregate).mean()
+
+
 def gaussian_kl(m1, lv1, m2, lv2) -> torch.Tensor:
     """KL(N(m1, e^lv1) || N(m2, e^lv2)) for diagonal Gaussians, summed over the last axis."""
     return 0.5 * (lv2 - lv1 + (lv1.exp() + (m1 - m2) ** 2) / lv2.exp() - 1).sum(-1)
@@ -87,6 +98,18 @@ class GaussianMixture:
         return skl.triu(1).sum() * 2 / (k * (k - 1))
 
 
+def responsibilities(
+    mixture: GaussianMixture, mean: torch.Tensor, logvar: torch.Tensor
+) -> torch.Tensor:
+    """p(k | X) of every component for posteriors N(mean, e^logvar), (n, dc) -> (n, K).
+
+    Exact for Gaussians: w_k * integral N(c; m_k, s_k^2) Q(c|X) dc = w_k N(mean; m_k, s_k^2 + var).
+    """
+    var = mixture.logvars.exp() + logvar.exp()[:, None]
+    log_p = gaussian_log_prob(mean[:, None], mixture.means, var.log())
+    return torch.softmax(log_p + mixture.weights.clamp_min(1e-30).log(), dim=-1)
+
+
 def mix(parts: list[GaussianMixture], weights: list[float]) -> GaussianMixture:
     """The mixture sum_i weights[i] * parts[i]."""
     return GaussianMixture(
@@ -105,16 +128,22 @@ def moment_match(means: torch.Tensor, logvars: torch.Tensor) -> tuple[torch.Tens
 
 @dataclass(frozen=True)
 class QueueConfig:
-    """Switches and sizes of the prior queue (defaults from the method notes, section 5)."""
+    """Switches and sizes of the prior queue (defaults from the method notes, section 5).
+
+    Each switch changes one thing: ``divergence`` is the paper's diversity term (Table 4) alone;
+    ``task_kl``, ``distill_decoder`` and ``distill_encoder`` are BooVAE's additions, off and on
+    one by one.
+    """
 
     capacity: int = 45  # gamma
     weight_opt: bool = True  # Eq 9; off: uniform weights ("average weight parameters")
-    divergence: bool = True  # Table 4's switch: the diversity term and every regulariser
+    divergence: bool = True  # Table 4's switch: the symmetric-KL diversity term of Eq 8 and pruning
     pruning: bool = True
-    task_kl: bool = True  # a task's training KL uses that task's components (BooVAE)
-    distill_decoder: bool = True  # hold the decoder to its outputs at old components' samples
-    distill_encoder: bool = True  # hold Q(C|X) to its values at old pseudo-inputs
-    anchors: int = 64  # anchors stored per task for the two above
+    task_kl: bool = False  # BooVAE: a task's training KL uses that task's components, not Eq 17's
+    distill_decoder: bool = True  # BooVAE: hold the decoder to its outputs at old components
+    distill_encoder: bool = True  # BooVAE: hold Q(C|X) to its values at old pseudo-inputs
+    mass_bounds: bool = True  # keep each task's share of the weights within [0.5/t, 2/t]
+    anchors: int = 64  # anchors stored per task for the two distillations
     anchor_batch: int = 32  # anchors drawn for each training step
     distill_weight: float = 1.0
     lambda_div: float = 0.1
@@ -128,6 +157,33 @@ class QueueConfig:
         require(self, 1, "target_samples")
         require(self, 0, "distill_weight", "lambda_div")
         require(self, 0, "fit_lr", high=10, open_low=True)
+
+
+def bounded_task_mass(weights: torch.Tensor, owners: list[int], rounds: int = 50) -> torch.Tensor:
+    """The weights rescaled per task so that each of the t tasks holds between 0.5/t and 2/t.
+
+    Eq 9 fits each new component's weight against a target in which the newest task has 1/t;
+    fitted one by one, the newest tasks' components came to hold 0.9 of the responsibility
+    (issue 22). The bound keeps Eq 17's equal task shares within a factor of two and leaves the
+    weights inside a task as Eq 9 set them. Clip, renormalise, repeat: the bounds hold at the
+    fixed point, which a few rounds reach.
+    """
+    owner = torch.tensor(owners)
+    tasks = owner.unique()
+    tasks = tasks[tasks >= 0]
+    t = len(tasks)
+    if t < 2 or (owner < 0).any():  # N(0, I) before the first task belongs to no task
+        return weights
+    index = torch.searchsorted(tasks, owner.clamp_min(0))
+    weights = weights.clone()
+    for _ in range(rounds):
+        mass = torch.zeros(t, dtype=weights.dtype).index_add(0, index, weights)
+        bounded = mass.clamp(0.5 / t, 2 / t)
+        bounded = bounded / bounded.sum()
+        if torch.allclose(bounded, mass, atol=1e-6):
+            break
+        weights = weights * (bounded / mass.clamp_min(1e-30))[index]
+    return weights / weights.sum()
 
 
 class PriorQueue:
@@ -159,9 +215,9 @@ class PriorQueue:
         return GaussianMixture(m.means[keep], m.logvars[keep], weights / weights.sum())
 
     def training_prior(self) -> GaussianMixture:
-        """The prior of the training KL: the newest task's components (``task_kl``), else all."""
-        cfg = self.config
-        if cfg.task_kl and cfg.divergence and self.owners[-1] >= 0:
+        """The prior of the training KL: the whole mixture (Eq 17), or with ``task_kl`` the
+        newest task's components (BooVAE)."""
+        if self.config.task_kl and self.owners[-1] >= 0:
             return self.task_mixture(self.owners[-1])
         return self.mixture
 
@@ -171,7 +227,8 @@ class PriorQueue:
         self.owners = [owner]
 
     def add(self, mean: torch.Tensor, logvar: torch.Tensor, new_weight: float, owner: int) -> None:
-        """Append a component with weight ``new_weight``; the old ones keep 1 - new_weight."""
+        """Append a component with weight ``new_weight``; the old ones keep 1 - new_weight
+        (then each task's share is bounded, with ``mass_bounds``)."""
         m = self.mixture
         weights = torch.cat([(1 - new_weight) * m.weights, torch.tensor([new_weight])])
         if not self.config.weight_opt:
@@ -182,28 +239,40 @@ class PriorQueue:
             weights,
         )
         self.owners.append(owner)
+        if self.config.mass_bounds:
+            self.mixture.weights = bounded_task_mass(self.mixture.weights, self.owners)
 
     def remove(self, index: int) -> None:
         self.mixture = self.mixture.without(index)
         del self.owners[index]
 
     # --- Eq 8: the new component -------------------------------------------------------------
-    def fit_component(self, target: GaussianMixture, generator: torch.Generator | None = None):
+    def fit_component(
+        self,
+        target: GaussianMixture,
+        generator: torch.Generator | None = None,
+        start: tuple[torch.Tensor, torch.Tensor] | None = None,
+        current: GaussianMixture | None = None,
+        steps: int | None = None,
+    ):
         """Eq 8: a Gaussian P fitted where the target T is poorly covered by the queue M.
 
         Maximises E_P[log T + log(T / (T + M))] + H[P] (+ lambda_div * mean SKL(P, P_k)), i.e.
         minimises KL(P || T r) with r = T / (T + M) in (0, 1). BooVAE's form E_P[log T/M] + H[P]
         has the same optimum direction but is unbounded for latent-space Gaussians (T/M grows
         without limit in the tails), so P would run away; the factor r keeps the target
-        normalisable while still favouring regions that M misses.
+        normalisable while still favouring regions that M misses. ``start`` (mean, logvar)
+        refines an existing component against ``current`` (the queue without it), for
+        ``steps`` Adam steps (default ``fit_steps``): the offline mode's update.
         """
         cfg = self.config
-        current = self.mixture.detached()
-        start = target.sample(1, generator)[0]
-        mean = start.clone().requires_grad_(True)
-        logvar = target.logvars.mean(0).clone().requires_grad_(True)
+        current = (current or self.mixture).detached()
+        if start is None:
+            start = target.sample(1, generator)[0], target.logvars.mean(0)
+        mean = start[0].clone().requires_grad_(True)
+        logvar = start[1].clone().requires_grad_(True)
         optimiser = torch.optim.Adam([mean, logvar], lr=cfg.fit_lr)
-        for _ in range(cfg.fit_steps):
+        for _ in range(cfg.fit_steps if steps is None else steps):
             noise = torch.randn(cfg.fit_samples, self.dim, generator=generator)
             c = gaussian_sample(mean, logvar, noise)
             entropy = 0.5 * (1 + LOG_2PI + logvar).sum()
@@ -219,14 +288,20 @@ class PriorQueue:
 
     # --- Eq 9: the weight of the new component -----------------------------------------------
     def fit_weight(
-        self, mean: torch.Tensor, logvar: torch.Tensor, target: GaussianMixture, generator=None
+        self,
+        mean: torch.Tensor,
+        logvar: torch.Tensor,
+        target: GaussianMixture,
+        generator=None,
+        current: GaussianMixture | None = None,
     ) -> float:
-        """The new component's weight 1 - alpha maximising E_T[log(alpha M + (1 - alpha) P)].
+        """The new component's weight 1 - alpha maximising E_T[log(alpha M + (1 - alpha) P)],
+        M the queue (or ``current``).
 
         A concave 1-D problem, solved by golden-section search on [1e-3, 1 - 1e-3].
         """
         c = target.sample(self.config.target_samples, generator)
-        log_m = self.mixture.log_prob(c)
+        log_m = (current or self.mixture).log_prob(c)
         log_p = gaussian_log_prob(c, mean, logvar)
 
         def score(new: float) -> float:
@@ -271,6 +346,8 @@ class PriorQueue:
             index = min(range(len(costs)), key=costs.__getitem__)
             self.remove(index)
             removed.append(index)
+        if removed and cfg.mass_bounds:
+            self.mixture.weights = bounded_task_mass(self.mixture.weights, self.owners)
         return removed
 
     def state_dict(self) -> dict[str, torch.Tensor]:
@@ -301,7 +378,7 @@ class LearnablePrior(torch.nn.Module):
         self.frozen = GaussianMixture(torch.zeros(0, dim), torch.zeros(0, dim), torch.zeros(0))
         self.frozen_owners: list[int] = []
         self.owner = 0  # the task the learnt components belong to now
-        self.config = QueueConfig(divergence=False, task_kl=False)
+        self.config = QueueConfig(divergence=False, distill_decoder=False, distill_encoder=False)
 
     def __len__(self) -> int:
         return len(self.frozen) + len(self.means)

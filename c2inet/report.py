@@ -196,8 +196,11 @@ def markdown_report(
         "error minus the best earlier one (Chaudhry et al. 2018), *worst* the worst error after "
         "leaving a task minus the error right after training it.",
         "",
-        "C2INet draws C from its prior queue at test time, one per scene (the back-door average "
-        "of Eq 16); its row *c from posterior* draws C from Q(C|X) instead.",
+        "The latent models (C2INet, its queue-free control, MoG, GCRL) are scored under three "
+        "test-time rules for C: from the posterior Q(C|X) (their default row, GCRL's practice), "
+        "*c from prior* (Eq 16 literally: C drawn from P(C), the queue's mixture) and *c from "
+        "responsible* (C drawn from the queue component most responsible for the observed past); "
+        "Z is then drawn from Q(Z|X,C).",
         "",
         f"Best of K = {k}, the minimum taken per scene (joint):",
         "",

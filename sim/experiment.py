@@ -210,6 +210,8 @@ def parse_settings(items: list[str]) -> dict[str, dict[str, Any]]:
             raise InputError(
                 f"--set {item!r}: expected SCOPE.KEY=VALUE, e.g. c2inet-online.pruning=false"
             )
+        if name in settings.get(scope, {}):
+            raise InputError(f"--set {key}: given twice; give each option once")
         settings.setdefault(scope, {})[name] = parse_value(text)
     return settings
 

@@ -39,6 +39,23 @@ if TYPE_CHECKING:
 
 RUNS = Path("runs")
 TRUTH_PART = "truth.partial.rrd"  # the run's own recording until it is merged with the jobs'
+MARKER = ".c2i-run"  # written first into every run folder: the proof that the folder is ours
+STUDIES = ("study", "shift", "drift", "active", "fidelity")
+RUN_FILES = {
+    MARKER,
+    "config.json",
+    "metrics.json",
+    "run_card.json",
+    "report.md",
+    "results.parquet",
+    "recording.rrd",
+    "recording.partial.rrd",
+    TRUTH_PART,
+    "summary.json",
+    *(f"{name}.{ext}" for name in STUDIES for ext in ("json", "md", "png")),
+}
+RUN_FOLDERS = {"jobs", "matrices", "figures", "logs", "tensorboard", "cache"}
+TEMPORARY = re.compile(r"^\.[^/]+\.[A-Za-z0-9_]{8}$")  # write_atomic's .NAME.XXXXXXXX
 
 
 def run_root(scenario: str) -> Path:
@@ -94,6 +111,8 @@ def claim(
                 f"--resume: {out} holds a run with other {', '.join(changed)}; "
                 "resume it with the same options, or use --overwrite"
             )
+        if not (out / MARKER).is_file():  # a run of an earlier version: the same configuration
+            mark_run(out)
         return
     if out.exists() and any(out.iterdir()):
         if not overwrite:
@@ -101,13 +120,61 @@ def claim(
                 f"--out {out}: not empty; add --resume to continue the run in it, "
                 "or --overwrite to replace it"
             )
-        if not saved.is_file():
-            raise InputError(
-                f"--overwrite: {out} holds no run (no config.json), so it is not removed"
-            )
-        shutil.rmtree(out)
+        remove_run(out)
+    mark_run(out)
     data = {"experiment": config.to_json(), "execution": _plain(asdict(execution))}
     write_text_atomic(saved, json.dumps(data, indent=1) + "\n")
+
+
+def mark_run(out: Path) -> None:
+    """Write the run marker, before anything else of the run."""
+    write_text_atomic(out / MARKER, "a run folder of c2i-testbed: --overwrite may remove it\n")
+
+
+def foreign_entry(folder: Path) -> Path | None:
+    """The first entry of ``folder`` that a run of ours does not write (None: all ours).
+
+    Ours: the marker and the run's own files and folders, temporary files of an interrupted
+    write, and nested run folders (a sweep's), alone or grouped in plain folders."""
+    for entry in sorted(folder.iterdir()):
+        if entry.is_symlink():
+            return entry
+        if entry.is_file() and (entry.name in RUN_FILES or TEMPORARY.match(entry.name)):
+            continue
+        if entry.is_dir() and entry.name in RUN_FOLDERS:
+            continue
+        if entry.is_dir() and (entry / MARKER).is_file():
+            inner = foreign_entry(entry)
+        elif entry.is_dir() and any(entry.iterdir()):  # a sweep's scenario folder
+            inner = next((e for e in entry.iterdir() if not (e / MARKER).is_file()), None)
+            inner = inner or next(filter(None, map(foreign_entry, entry.iterdir())), None)
+        else:
+            inner = entry
+        if inner is not None:
+            return inner
+    return None
+
+
+def remove_run(out: Path) -> None:
+    """Remove a run folder for ``--overwrite``, only if it is provably a run of ours: it holds
+    the marker and nothing a run does not write; never the current folder, one above it, the
+    home folder or the filesystem's root."""
+    folder = out.resolve()
+    protected = {Path.home().resolve(), Path(folder.anchor)}
+    if folder in protected or Path.cwd().resolve().is_relative_to(folder):
+        raise InputError(f"--overwrite: {out} is not a run folder, so it is not removed")
+    if not (folder / MARKER).is_file():
+        raise InputError(
+            f"--overwrite: {out} holds no run of this project (no {MARKER}), so it is not "
+            "removed; remove it yourself or choose another --out"
+        )
+    foreign = foreign_entry(folder)
+    if foreign is not None:
+        raise InputError(
+            f"--overwrite: {out} holds {foreign.relative_to(folder)}, which no run writes, so "
+            "it is not removed; move it away or choose another --out"
+        )
+    shutil.rmtree(folder)
 
 
 def _plain(values: dict[str, Any]) -> dict[str, Any]:

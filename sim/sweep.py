@@ -90,7 +90,12 @@ def parse_grid(items: list[str]) -> dict[str, tuple[Any, ...]]:
         if not sep or not text:
             raise InputError(f"--set {item!r}: expected SCOPE.KEY=V1,V2,...")
         parse_settings([f"{key}=0"])  # checks the key's form
-        grid[key] = tuple(parse_value(v) for v in text.split(","))
+        if key in grid:
+            raise InputError(f"--set {key}: given twice; list its values once, V1,V2,...")
+        values = tuple(parse_value(v) for v in text.split(","))
+        if len(set(map(repr, values))) < len(values):
+            raise InputError(f"--set {key}: a value is listed twice in {text!r}")
+        grid[key] = values
     return grid
 
 

@@ -1,7 +1,8 @@
 """The queue-free control: C2INet's network with a fixed N(0, I) prior on C and no regulariser.
 
-Everything but the queue is C2INet's (architecture, losses, test-time C from the prior, which is
-here N(0, I)), so the difference between the two measures what the queue itself contributes.
+Everything but the queue is C2INet's (architecture, losses, the three test-time rules for C, whose
+prior is here N(0, I)), so the difference between the two measures what the queue itself
+contributes, under each rule.
 No hooks. Example: ``--methods c2inet-online,c2inet-noqueue``
 """
 

@@ -5,9 +5,12 @@ At the first epoch of a task the posterior means of Q(C|X) over S of its agents 
 k-means (``clusters``, 5 by default, GCRL's number of environments); each cluster joins the
 queue as N(centre, within-cluster variance + mean posterior variance), weighted by its size
 within the task's share 1/t (earlier tasks keep (t-1)/t; uniform with ``weight_opt=false``).
-Every ``interval`` epochs the task's components are refined, as the offline mode "optimises the
-existing components": one k-means pass started from the current centres on the current
-encoder's posteriors re-estimates them in place. Pruning, anchors and the loss are C2INet-online's.
+Every ``interval`` epochs the task's components are refined, as Algorithm 1 (line 16) "optimises
+the existing components (Eq 8, 9)": each in turn is moved by the Eq 8 objective against the
+target T = (t-1)/t * M_old + 1/t * Q_cur, with the rest of the queue as M and the component
+itself as the start, then reweighted by Eq 9 against that rest. The task's components share
+``fit_steps`` Adam steps (online's cost per update); ``refine="kmeans"`` keeps the earlier rule
+(one k-means pass from the current centres). Pruning, anchors and the loss are C2INet-online's.
 Hooks: ``before_task``, ``after_epoch``, ``after_task``. Example: ``--methods c2inet-offline``
 """
 
@@ -19,19 +22,23 @@ import numpy as np
 import torch
 from sklearn.cluster import KMeans
 
+from c2inet.errors import InputError
 from c2inet.methods.base import TaskContext
 from c2inet.methods.c2inet_online import C2INetOnline, C2INetOptions
 from c2inet.options import require
-from c2inet.prior import GaussianMixture
+from c2inet.prior import GaussianMixture, bounded_task_mass
 
 
 @dataclass(frozen=True)
 class C2INetOfflineOptions(C2INetOptions):
     clusters: int = 5  # k of the k-means over a task's posterior means
+    refine: str = "eq8"  # how the task's components are updated: eq8 (Eq 8 and Eq 9) | kmeans
 
     def __post_init__(self):
         super().__post_init__()
         require(self, 1, "clusters", high=100)
+        if self.refine not in ("eq8", "kmeans"):
+            raise InputError(f"refine {self.refine!r}: expected eq8 or kmeans")
 
 
 class C2INetOffline(C2INetOnline):
@@ -79,10 +86,31 @@ class C2INetOffline(C2INetOnline):
 
     def before_task(self, ctx: TaskContext) -> None:
         self._sample(ctx)
+        self.old = ctx.model.queue.mixture.detached()  # M_old of the Eq 8 target
         self._cluster(ctx, None)
 
     def after_epoch(self, ctx: TaskContext, epoch: int) -> None:
-        if (epoch + 1) % self.options.interval == 0:
-            queue = ctx.model.queue
-            mine = [i for i, owner in enumerate(queue.owners) if owner == ctx.index]
+        if (epoch + 1) % self.options.interval:
+            return
+        queue = ctx.model.queue
+        mine = [i for i, owner in enumerate(queue.owners) if owner == ctx.index]
+        if self.options.refine == "kmeans":
             self._cluster(ctx, queue.mixture.means[mine].numpy().astype(np.float64))
+            return
+        target = self._target(ctx, *self._current_posterior(ctx))
+        steps = max(1, self.options.fit_steps // len(mine))
+        for k in mine:
+            m = queue.mixture
+            rest = m.without(k)
+            start = (m.means[k], m.logvars[k])
+            mean, logvar = queue.fit_component(target, start=start, current=rest, steps=steps)
+            new = m.weights[k].item()  # uniform weights stay uniform without Eq 9
+            if self.queue_config.weight_opt:
+                new = queue.fit_weight(mean, logvar, target, current=rest)
+            weights = torch.cat([(1 - new) * rest.weights[:k], torch.tensor([new])])
+            weights = torch.cat([weights, (1 - new) * rest.weights[k:]])
+            means, logvars = m.means.clone(), m.logvars.clone()
+            means[k], logvars[k] = mean, logvar
+            queue.mixture = GaussianMixture(means, logvars, weights)
+        if self.queue_config.mass_bounds:
+            queue.mixture.weights = bounded_task_mass(queue.mixture.weights, queue.owners)

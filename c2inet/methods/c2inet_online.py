@@ -3,16 +3,17 @@
 At the first epoch of a task, S samples of the task build an initial prior component (their
 moment-matched aggregated posterior) that joins the queue; every ``interval`` epochs a new
 component is fitted by the boosting step (Eq 8) against the target
-T = (t-1)/t * M_old + 1/t * Q_cur and weighted by Eq 9; after the task the queue is pruned to
-``capacity`` (Eq 10 criterion). The training loss is Eq 10 (``C2INetModel.loss``), its KL taken
-against the task's own components (``task_kl``).
+T = (t-1)/t * M_old + 1/t * Q_cur and weighted by Eq 9, each task's share of the weights kept
+within [0.5/t, 2/t] (``mass_bounds``); after the task the queue is pruned to ``capacity`` (Eq 10
+criterion). The training loss is Eq 10 (``C2INetModel.loss``), its KL taken against the whole
+mixture (Eq 17), or against the task's own components with BooVAE's ``task_kl``.
 
-The queue protects the network as in BooVAE: after each task, anchors are drawn from that task's
+BooVAE's additions, each its own switch: after each task, anchors are drawn from that task's
 components (z ~ N(0, I), c ~ its components, and the pseudo-input the past decoder makes of
 them); while later tasks train, the model's loss holds the decoder to what it predicted at the
 anchors (``distill_decoder``) and Q(C|X) at the pseudo-inputs to what it was
-(``distill_encoder``, symmetric KL). ``divergence=false`` switches off all of these together
-(Table 4). Hooks: ``before_task``, ``after_epoch``, ``after_task``.
+(``distill_encoder``, symmetric KL). ``divergence=false`` switches off the paper's diversity
+term alone (Table 4). Hooks: ``before_task``, ``after_epoch``, ``after_task``.
 Example: ``--methods c2inet-online``
 """
 
@@ -121,7 +122,8 @@ class C2INetOnline(Method):
         queue = model.queue
         self.pruned.append(len(queue.prune()))
         self.queue_sizes.append(len(queue))
-        if ctx.index in queue.owners:  # pruning may have removed all of a task's components
+        hold = self.queue_config.distill_decoder or self.queue_config.distill_encoder
+        if hold and ctx.index in queue.owners:  # pruning may remove all of a task's components
             new = make_anchors(model, queue.task_mixture(ctx.index), self.options.anchors)
             model.anchors = new if model.anchors is None else Anchors.concat([model.anchors, new])
 

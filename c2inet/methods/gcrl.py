@@ -1,7 +1,8 @@
 """GCRL (Bagi et al., ICML 2023): invariant Z and variant S, S under a learnable mixture prior.
 
-C2INet's network is GCRL's (the decoder sees [z, c] alone, the past is reconstructed, Z is held
-to N(0, I)); GCRL's prior on the variant latent (here C) is one mixture of ``components``
+GCRL's own network: the decoder sees [z, c] alone (``decoder_input="latents"``), the past is
+reconstructed from [z, c] (E1, weight 1), Z is read from X alone and held to N(0, I), and no
+free bits; GCRL's prior on the variant latent (here C) is one mixture of ``components``
 Gaussians with learnt means, variances and weights, trained with the model on every task in
 turn: nothing protects it from forgetting. Test-time C comes from the posterior, as GCRL
 evaluates. Left out: the RealNVP coupling flows of GCRL's ``--coupling`` variant (this is its
@@ -36,6 +37,13 @@ class GCRL(Method):
     Options = GCRLOptions
 
     def build_model(self) -> torch.nn.Module:
-        config = dataclasses.replace(self.model_config, c_source="posterior")
+        config = dataclasses.replace(
+            self.model_config,
+            decoder_input="latents",
+            z_given_c=False,
+            past_from="zc",
+            beta_x=1.0,
+            free_bits_c=0.0,
+        )
         prior = LearnablePrior(config.c_dim, self.options.components, learn_weights=True)
         return C2INetModel(config, prior=prior)

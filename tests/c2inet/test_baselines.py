@@ -75,7 +75,7 @@ def test_gcrl_learns_its_prior():
     after = model.queue.mixture.detached()
     assert not torch.allclose(after.means, before.means)
     assert not torch.allclose(after.weights, before.weights)  # the weights are learnt too
-    assert model.config.c_source == "posterior"
+    assert model.config.c_source == "posterior" and model.config.decoder_input == "latents"
 
 
 def test_counterfactual_subtracts_the_blank_past():

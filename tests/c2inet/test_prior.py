@@ -9,9 +9,11 @@ from c2inet.prior import (
     GaussianMixture,
     PriorQueue,
     QueueConfig,
+    bounded_task_mass,
     gaussian_log_prob,
     mix,
     moment_match,
+    responsibilities,
     symmetric_kl,
 )
 
@@ -116,23 +118,58 @@ def test_symmetric_kl_is_symmetric_non_negative_and_zero_on_equals():
     assert random_mixture().mean_pairwise_skl().item() >= 0
 
 
-def test_training_prior_is_the_newest_tasks_components_unless_switched_off():
-    q = PriorQueue(1)
+def test_training_prior_is_the_whole_mixture_unless_task_kl():
+    q = PriorQueue(1, QueueConfig(mass_bounds=False))
     assert q.training_prior() is q.mixture  # N(0, I) before any task
     q.reset(torch.zeros(1), torch.zeros(1), owner=0)
     q.add(torch.full((1,), 5.0), torch.zeros(1), 0.5, owner=1)
     q.add(torch.full((1,), 7.0), torch.zeros(1), 0.2, owner=1)
-    newest = q.training_prior()
+    assert len(q.training_prior()) == 3  # Eq 17: the whole mixture
+    per_task = PriorQueue(1, QueueConfig(task_kl=True))
+    per_task.mixture, per_task.owners = q.mixture, q.owners
+    newest = per_task.training_prior()
     assert newest.means.flatten().tolist() == [5.0, 7.0]
     assert newest.weights.sum().item() == pytest.approx(1.0)
-    for switch in ("task_kl", "divergence"):
-        off = PriorQueue(1, QueueConfig(**{switch: False}))
-        off.mixture, off.owners = q.mixture, q.owners
-        assert len(off.training_prior()) == 3
     state = q.state_dict()
     again = PriorQueue(1)
     again.load_state_dict(state)
     assert again.owners == [0, 1, 1]
+
+
+def test_task_mass_is_bounded_and_inner_weights_kept():
+    weights = torch.tensor([0.02, 0.03, 0.05, 0.6, 0.3])  # task 0 holds 0.1 of 3 tasks
+    owners = [0, 0, 1, 2, 2]
+    bounded = bounded_task_mass(weights, owners)
+    mass = [bounded[[i for i, o in enumerate(owners) if o == t]].sum().item() for t in range(3)]
+    assert sum(mass) == pytest.approx(1.0)
+    assert all(0.5 / 3 - 1e-4 <= m <= 2 / 3 + 1e-4 for m in mass)
+    assert mass[0] > 0.1  # the starved task got mass back
+    assert (bounded[0] / bounded[1]).item() == pytest.approx(2 / 3)  # inside a task: as fitted
+    fine = torch.tensor([0.3, 0.3, 0.4])
+    torch.testing.assert_close(bounded_task_mass(fine, [0, 1, 2]), fine)  # in bounds: untouched
+
+
+def test_queue_add_keeps_every_task_within_its_bounds():
+    q = PriorQueue(1)
+    q.reset(torch.zeros(1), torch.zeros(1), owner=0)
+    for task in (1, 2, 3):
+        for _ in range(3):  # each new component takes 0.9: the newest task would hold 0.999
+            q.add(torch.full((1,), float(task)), torch.zeros(1), 0.9, owner=task)
+    owners = torch.tensor(q.owners)
+    for task in range(4):
+        mass = q.mixture.weights[owners == task].sum().item()
+        assert 0.5 / 4 - 1e-4 <= mass <= 2 / 4 + 1e-4
+
+
+def test_responsibilities_are_the_exact_posterior_over_components():
+    mixture = random_mixture()
+    mean, logvar = torch.randn(5, 3), torch.randn(5, 3) * 0.3 - 1
+    exact = responsibilities(mixture, mean, logvar)
+    torch.manual_seed(0)  # Monte Carlo: E_{c ~ Q}[w_k N(c; m_k, s_k)], normalised
+    c = mean + (0.5 * logvar).exp() * torch.randn(200_000, 5, 3)
+    per = gaussian_log_prob(c[..., None, :], mixture.means, mixture.logvars).exp()
+    mc = (per * mixture.weights).mean(0)
+    torch.testing.assert_close(exact, mc / mc.sum(-1, keepdim=True), atol=0.01, rtol=0.05)
 
 
 def test_moment_match_of_two_gaussians():

@@ -151,6 +151,51 @@ def test_a_folder_is_only_replaced_when_it_holds_a_run(tmp_path):
     assert (tmp_path / "notes.txt").read_text() == "mine"
 
 
+def test_overwrite_removes_only_a_folder_that_is_provably_a_run_of_ours(tmp_path, monkeypatch):
+    """Issue 26, item 1: another program's config.json, the user's notes in a finished run, the
+    current folder: none is removed."""
+    config = ExperimentConfig("crowd_noise_0.1", methods=("cv",), quick=True, record=False)
+    foreign = tmp_path / "demo"
+    foreign.mkdir()
+    (foreign / "config.json").write_text('{"theme": "dark"}')
+    (foreign / "thesis.tex").write_text("x")
+    with pytest.raises(InputError, match="holds no run of this project"):
+        claim(foreign, config, Execution(), overwrite=True)
+    assert (foreign / "thesis.tex").read_text() == "x"
+
+    run = tmp_path / "run"
+    claim(run, config, Execution())
+    (run / "metrics.json").write_text("{}")
+    (run / ".report.md.abcd_123").write_text("")  # a temporary file of an interrupted write
+    (run / "jobs" / "cv" / "seed_0").mkdir(parents=True)
+    (run / "notes.txt").write_text("mine")
+    with pytest.raises(InputError, match="holds notes.txt, which no run writes"):
+        claim(run, config, Execution(), overwrite=True)
+    assert (run / "notes.txt").read_text() == "mine"
+    (run / "notes.txt").unlink()
+    claim(run, config, Execution(), overwrite=True)  # only our files: replaced
+    assert sorted(p.name for p in run.iterdir()) == [".c2i-run", "config.json"]
+
+    monkeypatch.chdir(run)
+    for here in (Path("."), Path("")):
+        with pytest.raises(InputError, match="is not a run folder"):
+            claim(here, config, Execution(), overwrite=True)
+    assert (run / "config.json").exists()
+
+
+def test_a_sweeps_nested_runs_count_as_ours_and_a_stray_file_among_them_does_not(tmp_path):
+    config = ExperimentConfig("crowd_noise_0.1", methods=("cv",), quick=True, record=False)
+    sweep = tmp_path / "sweep"
+    claim(sweep, config, Execution())
+    claim(sweep / "crowd_noise_0.1" / "default", config, Execution())
+    (sweep / "crowd_noise_0.1" / "draft.txt").write_text("mine")
+    with pytest.raises(InputError, match="draft.txt"):
+        claim(sweep, config, Execution(), overwrite=True)
+    (sweep / "crowd_noise_0.1" / "draft.txt").unlink()
+    claim(sweep, config, Execution(), overwrite=True)
+    assert not (sweep / "crowd_noise_0.1").exists()
+
+
 def test_the_experiment_is_a_function(tmp_path):
     config = ExperimentConfig("crowd_noise_0.1,0.2", methods=("cv",), quick=True, record=False)
     metrics = run_experiment(config, tmp_path / "run", Execution(cache=tmp_path / "cache"))

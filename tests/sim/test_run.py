@@ -30,7 +30,9 @@ def test_quick_run_writes_every_output(tmp_path):
     )
     assert result.returncode == 0, result.stderr
     assert "0.1" in result.stdout and ":0.3" in result.stdout and "c2inet-online" in result.stdout
-    assert "c2inet-online, c from posterior" in result.stdout  # the other source of C, beside
+    # the other test-time rules for C, beside the default (posterior)
+    assert "c2inet-online, c from prior" in result.stdout
+    assert "c2inet-online, c from responsible" in result.stdout
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["scenario"] == "crowd_noise_0.1..0.3" and metrics["k"] == 5
     assert metrics["tasks"] == ["crowd_noise_0.1", "crowd_noise_0.2", "crowd_noise_0.3"]
@@ -45,8 +47,9 @@ def test_quick_run_writes_every_output(tmp_path):
         assert math.isfinite(m["forgetting_final_ade"]) and m["seeds"] == 1
     c2inet = metrics["methods"]["c2inet-online"]
     assert len(c2inet["queue_size"]) == 3
-    # both test-time sources of C are scored; baselines have only their own
-    assert len(c2inet["ade_c_posterior"]) == 3 and "ade_c_posterior" not in metrics["methods"]["cv"]
+    # every test-time rule for C is scored; baselines have only their own
+    for rule in ("c_prior", "c_responsible"):
+        assert len(c2inet[f"ade_{rule}"]) == 3 and f"ade_{rule}" not in metrics["methods"]["cv"]
     diagnostics = c2inet["diagnostics"]
     assert len(diagnostics) == 3 and len(diagnostics[-1]["kl_c"]) == 3
     assert 0 <= diagnostics[-1]["probe_c"] <= 1 and diagnostics[-1]["knob_r2"] is not None
@@ -133,13 +136,20 @@ def test_seeds_give_mean_and_std(tmp_path):
             "true or false",
         ),
         (["--scenario", "crowd_noise_0.1", "--set", "pruning"], "SCOPE.KEY=VALUE"),
+        (
+            ["--scenario", "crowd_noise_0.1", "--set", "model.z_dim=4", "--set", "model.z_dim=5"],
+            "model.z_dim: given twice",
+        ),
         (["--scenario", "crowd_noise_0.1", "--set", "ewc.strength=1"], "not data, model, train"),
         (["--scenario", "crowd_noise_0.1", "--workers", "0"], "--workers"),
         (["--scenario", "crowd_noise_0.1", "--seeds", "0"], "--seeds: 0 is not between 1"),
         (["--scenario", "crowd_noise_0.1", "--k", "many"], "--k: 'many' is not an integer"),
         (["--scenario", "crowd_noise_0.1", "--threads", "0"], "--threads: 0 is not between 1"),
-        (["--scenario", "crowd_noise_0.1", "--set", "model.c_per=cell"], "expected agent or"),
-        (["--scenario", "crowd_noise_0.1", "--set", "model.c_source=mean"], "expected prior or"),
+        (["--scenario", "crowd_noise_0.1", "--set", "model.c_per=cell"], "expected one of agent"),
+        (
+            ["--scenario", "crowd_noise_0.1", "--set", "model.c_source=mean"],
+            "expected one of posterior",
+        ),
         (["--scenario", "crowd_noise_0.1", "--set", "train.k_train=0"], "k_train=0 is out of"),
         (["--scenario", "crowd_noise_0.1", "--set", "model.beta_x=-1"], "beta_x=-1 is out of"),
         (

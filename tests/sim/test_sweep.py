@@ -77,5 +77,9 @@ def test_the_grid_is_a_product_of_typed_values():
     assert {e.settings["model"]["beta_c"] for _, e in experiments} == {0, 1}
     with pytest.raises(InputError, match="SCOPE.KEY=V1"):
         parse_grid(["model.beta_c"])
+    with pytest.raises(InputError, match="given twice"):
+        parse_grid(["model.beta_c=0", "model.beta_c=1"])
+    with pytest.raises(InputError, match="listed twice"):
+        parse_grid(["model.beta_c=0,1,0"])
     with pytest.raises(InputError, match="not data, model, train"):
         SweepConfig(base, ("crowd_noise_0.1",), parse_grid(["ewc.strength=1"])).experiments()
