@@ -10,6 +10,7 @@ single-sample ``ade_k1``/``fde_k1``, ``avg_seen_ade``, ``forgetting_final_ade`` 
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import platform
@@ -40,9 +41,12 @@ if TYPE_CHECKING:
 RUNS = Path("runs")
 TRUTH_PART = "truth.partial.rrd"  # the run's own recording until it is merged with the jobs'
 MARKER = ".c2i-run"  # written first into every run folder: the proof that the folder is ours
+LOCK = ".c2i-run.lock"  # held (an OS file lock) by the process that runs or resumes the folder
+_LOCKS: dict[Path, int] = {}  # the folders this process holds, and the lock files' descriptors
 STUDIES = ("study", "shift", "drift", "active", "fidelity")
 RUN_FILES = {
     MARKER,
+    LOCK,
     "config.json",
     "metrics.json",
     "run_card.json",
@@ -100,9 +104,21 @@ def claim(
     """Make ``out`` this run's: refuse a folder holding something else, check that a resumed run
     has the same configuration, and write ``config.json``."""
     saved = out / "config.json"
+    if resume and not saved.is_file():
+        raise InputError(f"--resume: {out} holds no run to resume (no config.json)")
+    ours = (out / MARKER).is_file() or resume  # a resumable run of an earlier version counts
+    if not ours and out.is_dir() and _holds_files(out):  # refused before anything is written
+        if overwrite:
+            raise InputError(
+                f"--overwrite: {out} holds no run of this project (no {MARKER}), so it is not "
+                "removed; remove it yourself or choose another --out"
+            )
+        raise InputError(
+            f"--out {out}: not empty; add --resume to continue the run in it, "
+            "or --overwrite to replace it"
+        )
+    lock_run(out)
     if resume:
-        if not saved.is_file():
-            raise InputError(f"--resume: {out} holds no run to resume (no config.json)")
         before = json.loads(saved.read_text())["experiment"]
         now = json.loads(json.dumps(config.to_json()))
         changed = sorted(k for k in now if before.get(k) != now[k])
@@ -113,8 +129,9 @@ def claim(
             )
         if not (out / MARKER).is_file():  # a run of an earlier version: the same configuration
             mark_run(out)
+        remove_leftovers(out)
         return
-    if out.exists() and any(out.iterdir()):
+    if _holds_files(out):
         if not overwrite:
             raise InputError(
                 f"--out {out}: not empty; add --resume to continue the run in it, "
@@ -126,9 +143,41 @@ def claim(
     write_text_atomic(saved, json.dumps(data, indent=1) + "\n")
 
 
+def _holds_files(out: Path) -> bool:
+    return any(p.name != LOCK for p in out.iterdir())
+
+
+def lock_run(out: Path) -> None:
+    """Hold the folder's lock for as long as this process lives (the OS releases it when the
+    process ends, however it ends); a second run or resume of the folder gets one line."""
+    key = out.resolve()
+    if key in _LOCKS:
+        return
+    writable_folder(out, "--out")
+    fd = os.open(out / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        raise InputError(
+            f"--out {out}: another run or resume is using this folder; wait for it to end, "
+            "or choose another --out"
+        ) from None
+    _LOCKS[key] = fd
+
+
 def mark_run(out: Path) -> None:
     """Write the run marker, before anything else of the run."""
     write_text_atomic(out / MARKER, "a run folder of c2i-testbed: --overwrite may remove it\n")
+
+
+def remove_leftovers(out: Path) -> list[Path]:
+    """Remove the temporary files that interrupted atomic writes left in a run folder of ours
+    (``.NAME.XXXXXXXX``); returns them."""
+    leftovers = [p for p in out.rglob(".*") if p.is_file() and TEMPORARY.match(p.name)]
+    for path in leftovers:
+        path.unlink()
+    return leftovers
 
 
 def foreign_entry(folder: Path) -> Path | None:
@@ -164,17 +213,16 @@ def remove_run(out: Path) -> None:
     if folder in protected or Path.cwd().resolve().is_relative_to(folder):
         raise InputError(f"--overwrite: {out} is not a run folder, so it is not removed")
     if not (folder / MARKER).is_file():
-        raise InputError(
-            f"--overwrite: {out} holds no run of this project (no {MARKER}), so it is not "
-            "removed; remove it yourself or choose another --out"
-        )
+        raise InputError(f"--overwrite: {out} holds no run of this project (no {MARKER})")
     foreign = foreign_entry(folder)
     if foreign is not None:
         raise InputError(
             f"--overwrite: {out} holds {foreign.relative_to(folder)}, which no run writes, so "
             "it is not removed; move it away or choose another --out"
         )
-    shutil.rmtree(folder)
+    for entry in folder.iterdir():  # all but the lock this process holds
+        if entry.name != LOCK:
+            shutil.rmtree(entry) if entry.is_dir() else entry.unlink()
 
 
 def _plain(values: dict[str, Any]) -> dict[str, Any]:

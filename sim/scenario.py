@@ -19,7 +19,8 @@ from sim.families import Family, Splits, available_families, load_family
 
 MAX_DOMAINS = 64
 MAX_LABEL = 32  # characters of a value as written in a domain name
-_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)"
+MAX_SCENARIO = 2000  # characters of a whole scenario string, checked before any parsing
+_NUMBER = r"[-+]?(?:\d+(?:\.\d*)?|\.\d+)"  # unambiguous: no quadratic backtracking
 _RANGE = re.compile(rf"^({_NUMBER})\.\.({_NUMBER})(?::({_NUMBER}))?$")
 _NAME = re.compile(r"^[a-z0-9][a-z0-9_-]*$")
 
@@ -46,12 +47,19 @@ def _decimals(text: str) -> int:
 
 
 def _number(text: str, part: str) -> Decimal:
+    if len(text) > MAX_LABEL:  # before any parsing: long inputs are refused in constant time
+        raise InputError(
+            f"scenario part {quote(part)}: value {quote(text, 20)} is longer than "
+            f"{MAX_LABEL} characters"
+        )
     try:
         value = Decimal(text)
     except InvalidOperation:
-        raise InputError(f"scenario part {quote(part)}: {text!r} is not a number") from None
+        raise InputError(
+            f"scenario part {quote(part)}: {quote(text, 20)} is not a number"
+        ) from None
     if not value.is_finite():
-        raise InputError(f"scenario part {quote(part)}: {text!r} is not a finite number")
+        raise InputError(f"scenario part {quote(part)}: {quote(text, 20)} is not a finite number")
     return value
 
 
@@ -76,6 +84,8 @@ def _numeric_values(values: str, part: str) -> list[tuple[float, str]]:
         raise InputError(f"scenario part {quote(part)}: empty value in {values!r}")
     out = []
     for item in items:
+        if len(item) > MAX_LABEL:
+            _number(item, part)  # refuses it, naming the limit
         if not re.fullmatch(_NUMBER, item):
             hint = ""
             if re.fullmatch(rf"{_NUMBER}-{_NUMBER}", item):
@@ -129,6 +139,8 @@ def parse_scenario(
     """
     if not isinstance(scenario, str) or not scenario.strip():
         raise InputError("scenario: empty; expected FAMILY_VALUES, e.g. crowd_noise_0.1..0.6")
+    if len(scenario) > MAX_SCENARIO:
+        raise InputError(f"scenario {quote(scenario)}: longer than {MAX_SCENARIO} characters")
     families = available_families(extra_dirs or [])
     curriculum: list[DomainSpec] = []
     for part in (p.strip() for p in scenario.strip().split("+")):

@@ -174,13 +174,45 @@ def test_overwrite_removes_only_a_folder_that_is_provably_a_run_of_ours(tmp_path
     assert (run / "notes.txt").read_text() == "mine"
     (run / "notes.txt").unlink()
     claim(run, config, Execution(), overwrite=True)  # only our files: replaced
-    assert sorted(p.name for p in run.iterdir()) == [".c2i-run", "config.json"]
+    assert sorted(p.name for p in run.iterdir()) == [".c2i-run", ".c2i-run.lock", "config.json"]
 
     monkeypatch.chdir(run)
     for here in (Path("."), Path("")):
         with pytest.raises(InputError, match="is not a run folder"):
             claim(here, config, Execution(), overwrite=True)
     assert (run / "config.json").exists()
+
+
+def test_one_process_at_a_time_holds_a_run_folder(tmp_path):
+    """Issue 26, item 6: a second run or resume of a folder in use gets one line."""
+    import fcntl
+
+    from sim.outputs import LOCK
+
+    config = ExperimentConfig("crowd_noise_0.1", methods=("cv",), quick=True, record=False)
+    run = tmp_path / "run"
+    run.mkdir()
+    with open(run / LOCK, "w") as other:  # another process's lock: its own open file
+        fcntl.flock(other, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        with pytest.raises(InputError, match="another run or resume is using this folder"):
+            claim(run, config, Execution())
+    claim(run, config, Execution())  # released: free to take
+    assert (run / "config.json").exists()
+
+
+def test_resume_removes_the_temporary_files_of_interrupted_writes(tmp_path):
+    config = ExperimentConfig("crowd_noise_0.1", methods=("cv",), quick=True, record=False)
+    run = tmp_path / "run"
+    claim(run, config, Execution())
+    job = run / "jobs" / "cv" / "seed_0"
+    job.mkdir(parents=True)
+    leftovers = [run / ".recording.rrd.k2j4_9xq", job / ".result.json.ab12cd34"]
+    for path in leftovers:
+        path.write_text("half")
+    (job / ".hidden-notes").write_text("not ours")
+    claim(run, config, Execution(), resume=True)
+    assert not any(p.exists() for p in leftovers)
+    assert (job / ".hidden-notes").exists()
 
 
 def test_a_sweeps_nested_runs_count_as_ours_and_a_stray_file_among_them_does_not(tmp_path):

@@ -101,7 +101,7 @@ def test_data_overrides_change_knobs_and_split_sizes():
         ("eth_ucy_paris", "not a value"),
         ("", "empty"),
         ("crowd_noise_0.001..10", "more than"),
-        ("crowd_noise_0..1:0." + "0" * 5000 + "1", "more than 64 domains"),  # 5000-digit count
+        ("crowd_noise_0..1:0." + "0" * 25 + "1", "more than 64 domains"),  # a 26-digit count
         ("crowd_noise_0." + "0" * 300 + "1", "longer than 32 characters"),  # a file name
         ("crowd_noise_1e400", "not a number"),
     ],
@@ -115,6 +115,24 @@ def test_bad_scenarios_raise_one_clear_error(scenario, message):
 def test_an_error_quotes_a_long_input_by_its_prefix():
     with pytest.raises(InputError, match=r"\.\.\. \(5007 characters\)"):
         parse_scenario("crowd_noise_" + "x" * 4995)
+
+
+@pytest.mark.parametrize(
+    ("scenario", "message"),
+    [
+        ("crowd_noise_" + "1" * 1990, "longer than 2000 characters"),
+        ("crowd_noise_0.1.." + "1" * 1_200_000, "longer than 2000 characters"),
+        ("crowd_noise_0.1," + "2" * 1000, "longer than 32 characters"),
+        ("crowd_noise_0.1.." + "3" * 1900, "longer than 32 characters"),
+        ("crowd_noise_0.1.." + "y" * 1900, "longer than 32 characters"),
+    ],
+)
+def test_long_inputs_are_refused_before_parsing_with_a_short_message(scenario, message):
+    """Issue 26, item 9: a 1.2-million-character range raised decimal.Overflow and a
+    1,000-digit value took seconds; both are refused by their length, in one short line."""
+    with pytest.raises(InputError, match=message) as error:
+        parse_scenario(scenario)
+    assert len(str(error.value)) < 300
 
 
 @pytest.mark.parametrize(
