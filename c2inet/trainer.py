@@ -20,6 +20,7 @@ import torch
 from c2inet.batch import batches
 from c2inet.data import Windows
 from c2inet.diagnostics import diagnose
+from c2inet.errors import InputError
 from c2inet.files import write_atomic
 from c2inet.methods.base import Method, TaskContext
 from c2inet.metrics import evaluate_predictions
@@ -254,8 +255,14 @@ class ContinualTrainer:
         paths = self.checkpoints()
         for path in paths:
             state = load_checkpoint(path)
-            model.load_state_dict(state["model"])
-            self.method.load_state_dict(state["method"], model)
+            try:
+                model.load_state_dict(state["model"])
+                self.method.load_state_dict(state["method"], model)
+            except (RuntimeError, ValueError, KeyError, TypeError) as error:
+                raise InputError(
+                    f"--resume: checkpoint {path} does not fit this run's model or method "
+                    f"({type(error).__name__}); delete it to retrain, or use --overwrite"
+                ) from None
             i = state["task"]
             result.matrices = {m: v.numpy().copy() for m, v in state["matrices"].items()}
             result.summaries, result.diagnostics = state["summaries"], state["diagnostics"]
@@ -310,6 +317,20 @@ class ContinualTrainer:
         write_atomic(self._checkpoint(index), lambda tmp: torch.save(state, tmp))
 
 
+CHECKPOINT_KEYS = {"task", "model", "optimiser", "method", "torch_rng", "numpy_rng", "matrices"}
+
+
 def load_checkpoint(path: Path) -> dict[str, Any]:
-    """Read a task checkpoint safely (tensors and plain values only)."""
-    return torch.load(path, weights_only=True)
+    """Read a task checkpoint safely (tensors and plain values only); a damaged or foreign one
+    is one :class:`InputError` naming it and the way out."""
+    try:
+        state = torch.load(path, weights_only=True)
+        missing = CHECKPOINT_KEYS - set(state)
+    except Exception as error:  # torch raises many kinds for a damaged file
+        raise InputError(
+            f"--resume: checkpoint {path} is damaged ({type(error).__name__}); delete it to "
+            "retrain from the task before, or use --overwrite"
+        ) from None
+    if missing:
+        raise InputError(f"--resume: {path} is no checkpoint of this project (no {min(missing)})")
+    return state

@@ -18,6 +18,7 @@ import json
 import os
 import sys
 import time
+import zipfile
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -277,13 +278,31 @@ class JobResult:
 
     @staticmethod
     def load(job: Job, folder: Path) -> JobResult:
-        data = json.loads((folder / "result.json").read_text())
-        matrices = {m: np.array(v, dtype=float) for m, v in data.pop("matrices").items()}
-        predictions = {}
-        if (folder / "predictions.npz").exists():
-            with np.load(folder / "predictions.npz", allow_pickle=False) as saved:
-                predictions = dict(saved)
-        return JobResult(job, Result(matrices=matrices, **data), predictions)
+        """Read a finished job back; a damaged or foreign file is one :class:`InputError`
+        naming it and the way out."""
+        path = folder / "result.json"
+        try:
+            data = json.loads(path.read_text())
+            matrices = {m: np.array(v, dtype=float) for m, v in data.pop("matrices").items()}
+            result = Result(matrices=matrices, **data)
+            predictions = {}
+            path = folder / "predictions.npz"
+            if path.exists():
+                with np.load(path, allow_pickle=False) as saved:
+                    predictions = dict(saved)
+        except (
+            OSError,
+            ValueError,
+            KeyError,
+            TypeError,
+            AttributeError,
+            zipfile.BadZipFile,
+        ) as error:
+            raise InputError(
+                f"--resume: {path} is damaged or not this project's ({type(error).__name__}); "
+                f"delete {folder} to run that job again, or use --overwrite"
+            ) from None
+        return JobResult(job, result, predictions)
 
 
 def recording_id(config: ExperimentConfig) -> str:

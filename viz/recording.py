@@ -275,10 +275,12 @@ class RunRecorder:
         row: dict[str, list[float]],
         colour: Colour,
     ) -> None:
-        """Error on every task after training through one task, at ``when``."""
+        """Error on every task after training through one task, at ``when``; for the latent
+        models also under their other test-time rules for C (``ade_c_prior`` ...)."""
         self._time(**when)
+        rules = [m for m in row if m.startswith(("ade_c_", "ade_k1_c_"))]
         for j, name in enumerate(tasks):
-            for metric in ("ade", "fde", "ade_k1"):
+            for metric in ("ade", "fde", "ade_k1", *rules):
                 self._scalar(f"curves/{method}/matrix/{metric}/{name}", row[metric][j], colour)
 
     def log_diagnostics(

@@ -5,11 +5,13 @@ C2INet's network, with the prior queue replaced by ``per_task`` learnable Gaussi
 the model through the KL of C; after each task they are frozen and appended to the prior, and the
 next task learns new ones starting from where they were. Weights are uniform over every
 component. The difference from C2INet is the prior's update rule alone: no boosting, no weight
-fit, no pruning, no anchors. Hook: ``after_task``. Example: ``--methods mog``
+fit, no pruning, no anchors, and no free bits (the prior learns through KL_C). Hook:
+``after_task``. Example: ``--methods mog``
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import torch
@@ -36,7 +38,9 @@ class MoG(Method):
 
     def build_model(self) -> torch.nn.Module:
         prior = LearnablePrior(self.model_config.c_dim, self.options.per_task, learn_weights=False)
-        return C2INetModel(self.model_config, prior=prior)
+        # its prior learns through KL_C alone: free bits would leave it without a gradient
+        config = dataclasses.replace(self.model_config, free_bits_c=0.0)
+        return C2INetModel(config, prior=prior)
 
     def after_task(self, ctx: TaskContext) -> None:
         ctx.model.queue.freeze(next_owner=ctx.index + 1)

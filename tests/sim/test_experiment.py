@@ -260,3 +260,38 @@ def test_the_cache_must_be_a_writable_folder(tmp_path):
     with pytest.raises(InputError, match="cannot create it"):
         writable_folder(file / "sub", "--cache")
     assert writable_folder(tmp_path / "a" / "b", "--cache").is_dir()
+
+
+@pytest.mark.parametrize(
+    ("damage", "message"),
+    [
+        (lambda job: (job / "result.json").write_text("{not json"), "result.json is damaged"),
+        (lambda job: (job / "result.json").write_text('{"tasks": 3}'), "result.json is damaged"),
+        (lambda job: (job / "predictions.npz").write_bytes(b"PK\x03\x04junk"), "predictions.npz"),
+    ],
+)
+def test_a_damaged_finished_job_is_one_line_naming_the_file(tmp_path, damage, message):
+    """Issue 26, item 3: a damaged result.json or predictions.npz was a traceback."""
+    from sim.experiment import Job, JobResult
+
+    job = tmp_path / "jobs" / "cv" / "seed_0"
+    job.mkdir(parents=True)
+    (job / "result.json").write_text('{"tasks": [], "matrices": {}}')
+    damage(job)
+    with pytest.raises(InputError, match=message):
+        JobResult.load(Job("cv", 0), job)
+
+
+def test_a_damaged_or_foreign_checkpoint_is_one_line_naming_it(tmp_path):
+    import torch
+
+    from c2inet.trainer import load_checkpoint
+
+    broken = tmp_path / "task_00.pt"
+    broken.write_bytes(b"\x80\x02 not a checkpoint")
+    with pytest.raises(InputError, match="task_00.pt is damaged"):
+        load_checkpoint(broken)
+    foreign = tmp_path / "task_01.pt"
+    torch.save({"weights": torch.zeros(2)}, foreign)
+    with pytest.raises(InputError, match="no checkpoint of this project"):
+        load_checkpoint(foreign)

@@ -84,6 +84,9 @@ def test_recording_holds_scenes_rollouts_curves_and_queue(recorded):
     assert rows["/curves/finetune/val_ade/crowd_noise_0.1"] == 4 + 1  # 2 epochs x 2 tasks
     assert rows["/curves/finetune/val_ade/crowd_noise_0.2"] == 2 + 1
     assert rows["/curves/finetune/matrix/ade/crowd_noise_0.2"] == 2 + 1
+    for rule in ("c_prior", "c_responsible"):  # the other test-time rules for C, beside
+        assert rows[f"/curves/c2inet-online/matrix/ade_{rule}/crowd_noise_0.2"] == 2 + 1
+    assert not any("/finetune/matrix/ade_c_" in path for path in rows)
     assert rows["/curves/c2inet-online/kl_c"] == 4 + 1
     assert rows["/queue/c2inet-online/components"] == 2
     # the confounder's diagnostics, one row per task; the baselines' have no C part
