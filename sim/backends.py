@@ -7,8 +7,12 @@ Ray is an optional extra (``pip install '.[ray]'``), imported only when asked fo
 
 from __future__ import annotations
 
+import ctypes
 import multiprocessing
+import os
 import signal
+import sys
+import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
@@ -21,11 +25,44 @@ BACKENDS = ("local", "ray")
 _shared: tuple = ()  # what a local worker process received once, at its start
 
 
-def _start_worker(shared: tuple) -> None:
-    """A local worker ignores Ctrl-C (the driver stops it) and keeps the shared inputs."""
+PR_SET_PDEATHSIG = 1  # Linux prctl: a signal for this process when its parent dies
+
+
+def _die_with_parent() -> None:
+    """Ask Linux to kill this worker when the driver dies, however it dies (SIGKILL, OOM)."""
+    if sys.platform.startswith("linux"):
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+
+
+def _start_worker(shared: tuple, driver: int) -> None:
+    """A local worker ignores Ctrl-C (the driver stops it), dies with the driver and keeps the
+    shared inputs."""
     global _shared
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _die_with_parent()
+    if os.getppid() != driver:  # the driver died before the request took effect
+        os._exit(1)
     _shared = shared
+
+
+def _exit_on(signum, _frame) -> None:
+    raise SystemExit(128 + signum)
+
+
+class _StopOnTermination:
+    """While a pool runs, SIGTERM and SIGHUP end the driver through its ``finally`` (which stops
+    the workers) instead of killing it on the spot."""
+
+    SIGNALS = (signal.SIGTERM, signal.SIGHUP)
+
+    def __enter__(self):
+        self.previous = {}
+        if threading.current_thread() is threading.main_thread():
+            self.previous = {s: signal.signal(s, _exit_on) for s in self.SIGNALS}
+
+    def __exit__(self, *_):
+        for signum, handler in self.previous.items():
+            signal.signal(signum, handler)
 
 
 def _call_in_worker(call: tuple[Callable, Any, dict]) -> Any:
@@ -60,8 +97,14 @@ def run_jobs(
         min(processes, len(jobs)),
         multiprocessing.get_context("spawn"),  # torch and fork do not mix
         _start_worker,
-        (shared,),
+        (shared, os.getpid()),
     )
+    with _StopOnTermination():
+        return _run_in_pool(pool, fn, jobs, options, progress, tasks_of)
+
+
+def _run_in_pool(pool, fn, jobs, options, progress, tasks_of) -> list[Any]:
+    """The jobs on a local pool, in order; the workers are stopped however this ends."""
     try:
         futures = {
             pool.submit(_call_in_worker, (fn, job, options)): i for i, job in enumerate(jobs)

@@ -1,0 +1,55 @@
+"""The local backend's workers never outlive their driver (issue 26, item 4)."""
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+DRIVER = textwrap.dedent(
+    """
+    import sys, time
+    from pathlib import Path
+    from sim.backends import run_jobs
+
+    def sleeper(job, folder):
+        (Path(folder) / f"{job}.pid").write_text(str(__import__("os").getpid()))
+        time.sleep(120)
+
+    if __name__ == "__main__":
+        run_jobs(sleeper, [0, 1], (sys.argv[1],), processes=2)
+    """
+)
+
+
+def alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    state = (
+        Path(f"/proc/{pid}/stat").read_text().split()[2] if Path(f"/proc/{pid}").exists() else ""
+    )
+    return state != "Z"  # a zombie has ended
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP, signal.SIGKILL])
+def test_workers_die_with_their_driver(tmp_path, signum):
+    script = tmp_path / "driver.py"
+    script.write_text(DRIVER)
+    driver = subprocess.Popen([sys.executable, str(script), str(tmp_path)], cwd=tmp_path)
+    deadline = time.monotonic() + 120
+    while len(list(tmp_path.glob("*.pid"))) < 2:  # both workers are in their jobs
+        assert time.monotonic() < deadline and driver.poll() is None
+        time.sleep(0.2)
+    workers = [int(p.read_text()) for p in tmp_path.glob("*.pid")]
+    driver.send_signal(signum)
+    driver.wait(timeout=60)
+    deadline = time.monotonic() + 30
+    while any(alive(pid) for pid in workers) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not any(alive(pid) for pid in workers)
