@@ -11,14 +11,16 @@ import ctypes
 import multiprocessing
 import os
 import signal
+import socket
 import sys
 import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
+from pathlib import Path
 from typing import Any
 
-from c2inet.errors import InputError
+from c2inet.errors import InputError, quote
 
 BACKENDS = ("local", "ray")
 
@@ -122,6 +124,24 @@ def _run_in_pool(pool, fn, jobs, options, progress, tasks_of) -> list[Any]:
         for process in list(pool._processes.values()):  # the executor offers no public way
             process.terminate()
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def check_ray_address(address: str, seconds: float = 5.0) -> None:
+    """Refuse, in one line and before any work, a Ray address that is malformed or where
+    nothing answers: ``HOST:PORT`` or ``ray://HOST:PORT`` (a TCP connection is tried), or
+    ``auto`` (a cluster started on this machine by ``ray start``)."""
+    where = f"--ray-address {quote(address, 40)}"
+    if address == "auto":
+        if not (os.environ.get("RAY_ADDRESS") or Path("/tmp/ray/ray_current_cluster").exists()):
+            raise InputError(f"{where}: no Ray cluster runs on this machine (start one: ray start)")
+        return
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    if not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise InputError(f"{where}: expected HOST:PORT, ray://HOST:PORT or auto")
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=seconds).close()
+    except OSError as error:
+        raise InputError(f"{where}: nothing answers there ({error.strerror or error})") from None
 
 
 def _run_on_ray(fn, jobs, shared, processes, address, options, progress, tasks_of):

@@ -35,7 +35,7 @@ from c2inet.methods.base import get_method
 from c2inet.model import ModelConfig
 from c2inet.options import build
 from c2inet.trainer import ContinualTrainer, Result, TrainConfig
-from sim.backends import BACKENDS, run_jobs
+from sim.backends import BACKENDS, check_ray_address, run_jobs
 from sim.curriculum import SAMPLE_SCENES, Curriculum, JobInputs, make_showcases, make_tasks
 from sim.estimate import describe, run_seconds
 from sim.outputs import TRUTH_PART, claim, output_folder, write_outputs
@@ -178,6 +178,8 @@ class Execution:
             raise InputError(f"--cache {self.cache}: not a folder")
         if self.ray_address is not None and self.backend != "ray":
             raise InputError("--ray-address: only with --backend ray")
+        if self.ray_address is not None:
+            check_ray_address(self.ray_address)  # before the domains and the folder
 
     def job_options(self, resume: bool) -> dict[str, Any]:
         """The keyword options of :func:`run_job` that come from how the run executes."""

@@ -11,6 +11,7 @@ single-sample ``ade_k1``/``fde_k1``, ``avg_seen_ade``, ``forgetting_final_ade`` 
 from __future__ import annotations
 
 import fcntl
+import hashlib
 import json
 import os
 import platform
@@ -62,9 +63,16 @@ RUN_FOLDERS = {"jobs", "matrices", "figures", "logs", "tensorboard", "cache"}
 TEMPORARY = re.compile(r"^\.[^/]+\.[A-Za-z0-9_]{8}$")  # write_atomic's .NAME.XXXXXXXX
 
 
+MAX_NAME = 100  # characters of a folder named after a scenario or a setting
+
+
 def run_root(scenario: str) -> Path:
-    """``runs/<scenario>`` with every character outside [A-Za-z0-9._,+-] replaced by '_'."""
+    """``runs/<scenario>`` with every character outside [A-Za-z0-9._,+-] replaced by '_'; a
+    name longer than ``MAX_NAME`` keeps its start and ends in a hash of the whole."""
     name = re.sub(r"[^A-Za-z0-9._,+-]", "_", scenario).strip(".") or "scenario"
+    if len(name) > MAX_NAME:
+        digest = hashlib.sha256(scenario.encode()).hexdigest()[:12]
+        name = f"{name[: MAX_NAME - 13]}-{digest}"
     return RUNS / name
 
 

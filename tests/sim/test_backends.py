@@ -53,3 +53,32 @@ def test_workers_die_with_their_driver(tmp_path, signum):
     while any(alive(pid) for pid in workers) and time.monotonic() < deadline:
         time.sleep(0.2)
     assert not any(alive(pid) for pid in workers)
+
+
+@pytest.mark.parametrize(
+    ("address", "message"),
+    [
+        ("garbage", "expected HOST:PORT"),
+        ("", "expected HOST:PORT"),
+        ("127.0.0.1:0", "expected HOST:PORT"),
+        ("127.0.0.1:1", "nothing answers there"),
+    ],
+)
+def test_a_bad_ray_address_is_refused_before_any_work(address, message):
+    """Issue 26, item 8: these gave tracebacks after 10 to 42 s, or retried for 600 s."""
+    from c2inet.errors import InputError
+    from sim.experiment import Execution
+
+    start = time.monotonic()
+    with pytest.raises(InputError, match=message):
+        Execution(backend="ray", ray_address=address)
+    assert time.monotonic() - start < 10
+
+
+def test_a_listening_address_is_accepted():
+    import socket
+
+    from sim.backends import check_ray_address
+
+    with socket.create_server(("127.0.0.1", 0)) as server:
+        check_ray_address(f"127.0.0.1:{server.getsockname()[1]}")

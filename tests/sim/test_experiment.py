@@ -295,3 +295,15 @@ def test_a_damaged_or_foreign_checkpoint_is_one_line_naming_it(tmp_path):
     torch.save({"weights": torch.zeros(2)}, foreign)
     with pytest.raises(InputError, match="no checkpoint of this project"):
         load_checkpoint(foreign)
+
+
+def test_folder_names_stay_short_and_distinct_for_long_scenarios():
+    """Issue 26, item 7: a valid 64-value scenario made a 394-character folder name."""
+    from sim.outputs import MAX_NAME, run_root
+
+    values = ",".join(f"0.{i:03d}" for i in range(1, 65))
+    long_one, other = f"crowd_noise_{values}", f"crowd_noise_{values},0.9"
+    assert len(run_root(long_one).name) == MAX_NAME
+    assert run_root(long_one).name.startswith("crowd_noise_0.001,0.002")
+    assert run_root(long_one) != run_root(other)
+    assert run_root("crowd_noise_0.1..0.6").name == "crowd_noise_0.1..0.6"  # short: unchanged
