@@ -377,9 +377,9 @@ class C2INetModel(Predictor):
 
         KL_C is taken against the queue's training prior (the whole mixture, Eq 17, unless
         ``task_kl``), with ``free_bits_c`` nats per C free; KL_Z is Q(Z|X,C)'s against N(0, I).
-        A batch whose MI(X; C) falls below ``mi_floor_c`` pays ``mi_weight`` per missing nat:
-        with the context beside it, the decoder needs nothing from C, and free bits alone left
-        it collapsed (issue 22), so liveness is asked for rather than hoped for.
+        With ``mi_floor_c`` a batch whose MI(X; C) falls below it pays ``mi_weight`` per missing
+        nat: with the context beside it the decoder needs nothing from C, so C stays live only
+        when asked to; off by default, since a live C cost plasticity (docs/c2inet-study.md).
         """
         cfg = self.config
         anchors, hold_decoder, hold_encoder = self._protection()
