@@ -389,26 +389,28 @@ class C2INetModel(Predictor):
         pred, anchor_future = self._decode(batch, cond[:k_train], anchors if hold_decoder else None)
         future = variety_loss(self.nll(batch, pred), batch)
         mc = cfg.n_mc
-        past = self.reconstruct_past(z[:mc], self.per_agent(c[:mc], batch))
-        past_error = past - (batch.obs_rel[1:] / batch.scale)[:, None]
-        nll_x = (past_error**2).sum(dim=(0, 3)).mean(0) / (2 * cfg.likelihood_std**2)
         log_q = gaussian_log_prob(c[:mc], post.c_mean, post.c_logvar)
         kl_c = (log_q - self.queue.training_prior().log_prob(c[:mc])).mean(0)
         kl_c = self.per_scene(kl_c, batch)  # (B,)
         kl_z = kl_standard_normal(mz[:mc], lz[:mc]).mean(0)
-        per_agent = batch.per_scene_mean(cfg.beta_x * nll_x + cfg.beta_z * kl_z)
+        per_agent = cfg.beta_z * kl_z
         kl_c_cost = kl_c.clamp_min(cfg.free_bits_c) if cfg.free_bits_c else kl_c
-        loss = future + per_agent.mean() + cfg.beta_c * kl_c_cost.mean()
-        mi = minibatch_mutual_information(c[:mc], post.c_mean, post.c_logvar)
-        if cfg.mi_floor_c and cfg.mi_weight:
-            loss = loss + cfg.mi_weight * (cfg.mi_floor_c - mi).clamp_min(0)
         parts = {
             "nll": future.item(),
-            "nll_past": batch.per_scene_mean(nll_x).mean().item(),
             "kl_c": kl_c.mean().item(),
             "kl_z": batch.per_scene_mean(kl_z).mean().item(),
-            "mi_c": mi.item(),
         }
+        if cfg.beta_x:  # the past reconstruction, only where it is weighted
+            past = self.reconstruct_past(z[:mc], self.per_agent(c[:mc], batch))
+            past_error = past - (batch.obs_rel[1:] / batch.scale)[:, None]
+            nll_x = (past_error**2).sum(dim=(0, 3)).mean(0) / (2 * cfg.likelihood_std**2)
+            per_agent = per_agent + cfg.beta_x * nll_x
+            parts["nll_past"] = batch.per_scene_mean(nll_x).mean().item()
+        loss = future + batch.per_scene_mean(per_agent).mean() + cfg.beta_c * kl_c_cost.mean()
+        if cfg.mi_floor_c and cfg.mi_weight:  # an n x n estimate: only where it is asked for
+            mi = minibatch_mutual_information(c[:mc], post.c_mean, post.c_logvar)
+            loss = loss + cfg.mi_weight * (cfg.mi_floor_c - mi).clamp_min(0)
+            parts["mi_c"] = mi.item()
         if anchors is not None:
             for name, held in self._held(anchors, anchor_future, hold_encoder).items():
                 loss = loss + self.queue.config.distill_weight * held

@@ -266,7 +266,7 @@ class PriorQueue:
         ``steps`` Adam steps (default ``fit_steps``): the offline mode's update.
         """
         cfg = self.config
-        current = (current or self.mixture).detached()
+        current = (self.mixture if current is None else current).detached()
         if start is None:
             start = target.sample(1, generator)[0], target.logvars.mean(0)
         mean = start[0].clone().requires_grad_(True)
@@ -301,7 +301,7 @@ class PriorQueue:
         A concave 1-D problem, solved by golden-section search on [1e-3, 1 - 1e-3].
         """
         c = target.sample(self.config.target_samples, generator)
-        log_m = (current or self.mixture).log_prob(c)
+        log_m = (self.mixture if current is None else current).log_prob(c)
         log_p = gaussian_log_prob(c, mean, logvar)
 
         def score(new: float) -> float:

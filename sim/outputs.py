@@ -188,23 +188,29 @@ def remove_leftovers(out: Path) -> list[Path]:
     return leftovers
 
 
-def foreign_entry(folder: Path) -> Path | None:
+def _run_output(entry: Path) -> bool:
+    """A file or folder a run writes into its own folder."""
+    if entry.is_file():
+        return entry.name in RUN_FILES or bool(TEMPORARY.match(entry.name))
+    return entry.is_dir() and entry.name in RUN_FOLDERS
+
+
+def foreign_entry(folder: Path, runs_only: bool = False) -> Path | None:
     """The first entry of ``folder`` that a run of ours does not write (None: all ours).
 
     Ours: the marker and the run's own files and folders, temporary files of an interrupted
-    write, and nested run folders (a sweep's), alone or grouped in plain folders."""
+    write, and nested run folders (a sweep's), alone or grouped in plain folders that hold
+    nothing else (``runs_only``)."""
     for entry in sorted(folder.iterdir()):
-        if entry.is_symlink():
+        run = entry.is_dir() and not entry.is_symlink() and (entry / MARKER).is_file()
+        if entry.is_symlink() or (runs_only and not run):
             return entry
-        if entry.is_file() and (entry.name in RUN_FILES or TEMPORARY.match(entry.name)):
-            continue
-        if entry.is_dir() and entry.name in RUN_FOLDERS:
-            continue
-        if entry.is_dir() and (entry / MARKER).is_file():
+        if run:
             inner = foreign_entry(entry)
+        elif _run_output(entry):
+            continue
         elif entry.is_dir() and any(entry.iterdir()):  # a sweep's scenario folder
-            inner = next((e for e in entry.iterdir() if not (e / MARKER).is_file()), None)
-            inner = inner or next(filter(None, map(foreign_entry, entry.iterdir())), None)
+            inner = foreign_entry(entry, runs_only=True)
         else:
             inner = entry
         if inner is not None:
@@ -229,8 +235,10 @@ def remove_run(out: Path) -> None:
             "it is not removed; move it away or choose another --out"
         )
     for entry in folder.iterdir():  # all but the lock this process holds
-        if entry.name != LOCK:
-            shutil.rmtree(entry) if entry.is_dir() else entry.unlink()
+        if entry.is_dir():
+            shutil.rmtree(entry)
+        elif entry.name != LOCK:
+            entry.unlink()
 
 
 def _plain(values: dict[str, Any]) -> dict[str, Any]:

@@ -46,12 +46,17 @@ def _decimals(text: str) -> int:
     return len(text.split(".")[1]) if "." in text else 0
 
 
-def _number(text: str, part: str) -> Decimal:
-    if len(text) > MAX_LABEL:  # before any parsing: long inputs are refused in constant time
+def _check_length(text: str, part: str) -> None:
+    """Refuse a value longer than ``MAX_LABEL`` before any parsing (constant time)."""
+    if len(text) > MAX_LABEL:
         raise InputError(
             f"scenario part {quote(part)}: value {quote(text, 20)} is longer than "
             f"{MAX_LABEL} characters"
         )
+
+
+def _number(text: str, part: str) -> Decimal:
+    _check_length(text, part)
     try:
         value = Decimal(text)
     except InvalidOperation:
@@ -84,8 +89,7 @@ def _numeric_values(values: str, part: str) -> list[tuple[float, str]]:
         raise InputError(f"scenario part {quote(part)}: empty value in {values!r}")
     out = []
     for item in items:
-        if len(item) > MAX_LABEL:
-            _number(item, part)  # refuses it, naming the limit
+        _check_length(item, part)
         if not re.fullmatch(_NUMBER, item):
             hint = ""
             if re.fullmatch(rf"{_NUMBER}-{_NUMBER}", item):

@@ -105,10 +105,12 @@ class C2INetOffline(C2INetOnline):
             start = (m.means[k], m.logvars[k])
             mean, logvar = queue.fit_component(target, start=start, current=rest, steps=steps)
             new = m.weights[k].item()  # uniform weights stay uniform without Eq 9
-            if self.queue_config.weight_opt:
+            if len(m) == 1:  # a lone component keeps all the mass
+                new = 1.0
+            elif self.queue_config.weight_opt:
                 new = queue.fit_weight(mean, logvar, target, current=rest)
-            weights = torch.cat([(1 - new) * rest.weights[:k], torch.tensor([new])])
-            weights = torch.cat([weights, (1 - new) * rest.weights[k:]])
+            weights = torch.cat([rest.weights[:k], torch.zeros(1), rest.weights[k:]]) * (1 - new)
+            weights[k] = new
             means, logvars = m.means.clone(), m.logvars.clone()
             means[k], logvars[k] = mean, logvar
             queue.mixture = GaussianMixture(means, logvars, weights)
