@@ -16,7 +16,7 @@ run: venv
 	$(PY) -m sim.run --scenario $(SCENARIO)
 
 test: venv
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n auto
 
 lint: venv
 	$(VENV)/bin/ruff check . && $(VENV)/bin/ruff format --check .

@@ -11,7 +11,8 @@ def __getattr__(name: str):
     """The names above, imported on first use: ``python -m sim.generate`` and friends must not
     find their own module already imported by the package."""
     if name in __all__:
-        from sim import curriculum, experiment
+        from sim import experiment
+        from sim.experiment import curriculum
 
         return getattr(curriculum if name == "learner_tasks" else experiment, name)
     raise AttributeError(f"module 'sim' has no attribute {name!r}")

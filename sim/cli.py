@@ -5,10 +5,14 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import os
+import sys
 from pathlib import Path
 
+from c2inet.backbones import BACKBONES
 from c2inet.errors import InputError, did_you_mean
 from c2inet.methods.base import discover
+from sim.experiment.backends import BACKENDS
+from sim.experiment.config import DEFAULT_METHODS, Execution, parse_settings
 from sim.families import available_families, load_family
 from sim.generators import get_generator
 from viz.cli import bounded_float, bounded_int, plain_parser
@@ -26,7 +30,7 @@ def parser(
     """An argument parser with the options every scenario entry point takes, ``--list``, and
     ``examples`` under the help (``scenarios``: ``--scenario`` may be repeated, giving a list).
     Parse with :func:`parse`."""
-    p = plain_parser(prog, description)
+    p = plain_parser(command_name(prog), description)
     p.formatter_class = argparse.RawDescriptionHelpFormatter
     p.epilog = f"examples:\n{examples}\n\n{SCENARIO_HELP}" if examples else SCENARIO_HELP
     p.add_argument(
@@ -132,3 +136,115 @@ def listing(what: list[str], extra_dirs: list[Path]) -> str:
         lines.append(f"scenes per split: {splits} (--set data.splits.train=N, ...)")
         return "\n".join(lines)
     raise InputError(f"--list {' '.join(what)}: expected families, methods, or knobs FAMILY")
+
+
+def add_experiment_options(
+    p: argparse.ArgumentParser,
+    methods: str = ",".join(DEFAULT_METHODS),
+    jobs: bool = True,
+    grid: bool = False,
+) -> None:
+    """The options of every command that trains: what to train, the domain cache, ``--set``,
+    ``--overwrite``; with ``jobs`` (the training runs as the engine's jobs) also ``--resume``,
+    the backend, ``--jobs``, recording and loggers. ``methods``: the default of ``--methods``;
+    ``grid``: ``--set`` lists values to sweep."""
+    p.add_argument(
+        "--methods", default=methods, help=f"comma-separated, or all (default {methods})"
+    )
+    p.add_argument("--backbone", choices=sorted(BACKBONES), default="stgat")
+    p.add_argument(
+        "--epochs", type=bounded_int(0, 10_000), help="epochs per task (default 20, quick 2)"
+    )
+    p.add_argument(
+        "--seeds", type=bounded_int(1, 100), default=1, help="seeds per method; cells: mean, std"
+    )
+    p.add_argument(
+        "--k", type=bounded_int(1, 1000), help="samples of best-of-K (default 20, quick 5)"
+    )
+    p.add_argument("--cache", type=Path, default=Path(".cache/domains"), help="domain cache folder")
+    p.add_argument("--quick", action="store_true", help="tiny sizes, for smoke tests")
+    p.add_argument("--overwrite", action="store_true", help="replace the output folder (ours only)")
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="SCOPE.KEY=V1,V2" if grid else "SCOPE.KEY=VALUE",
+        help="an option and the values to sweep, e.g. model.beta_c=0,1 (repeatable: product)"
+        if grid
+        else "override an option: model.beta_c=0, train.lr=0.001, c2inet-online.pruning=false",
+    )
+    add_workers(p)
+    add_threads(p)
+    if not jobs:
+        return
+    p.add_argument("--resume", action="store_true", help="continue the run in --out (or latest)")
+    p.add_argument("--backend", choices=BACKENDS, default="local", help="where jobs run")
+    p.add_argument(
+        "--jobs",
+        type=bounded_int(1, 1024),
+        default=1,
+        help="jobs at once: local processes, or the CPUs of the local Ray cluster (default 1)",
+    )
+    p.add_argument("--ray-address", help="join this Ray cluster instead of starting one")
+    p.add_argument("--no-record", action="store_true", help="do not write recording.rrd")
+    p.add_argument(
+        "--logger",
+        default="",
+        help="also log every job's curves: csv, tensorboard or both (comma-separated)",
+    )
+
+
+def experiment_options(args: argparse.Namespace, grid: bool = False) -> dict:
+    """The fields of ``ExperimentConfig`` that :func:`add_experiment_options`' options give
+    (``grid``: ``--set`` is a sweep's grid, not the configuration's settings)."""
+    return {
+        "methods": method_names(args.methods),
+        "seeds": args.seeds,
+        "seed": args.seed,
+        "epochs": args.epochs,
+        "k": args.k,
+        "backbone": args.backbone,
+        "quick": args.quick,
+        "scenarios_dir": tuple(args.scenarios_dir),
+        "settings": {} if grid else parse_settings(args.set),
+        "record": not getattr(args, "no_record", True),
+    }
+
+
+def method_names(text: str) -> tuple[str, ...]:
+    """``--methods``: comma-separated names, or ``all`` for every registered method."""
+    if text.strip() == "all":
+        return tuple(sorted(discover()))
+    return tuple(name.strip() for name in text.split(",") if name.strip())
+
+
+def execution_of(args: argparse.Namespace) -> Execution:
+    """How the command's experiment runs, from :func:`add_experiment_options`' options."""
+    return Execution(
+        backend=getattr(args, "backend", "local"),
+        jobs=getattr(args, "jobs", 1),
+        ray_address=getattr(args, "ray_address", None),
+        threads=args.threads,
+        workers=args.workers,
+        memory_budget=args.memory_budget,
+        cache=args.cache,
+        rerun=getattr(args, "rerun", None),
+        loggers=tuple(n.strip() for n in getattr(args, "logger", "").split(",") if n.strip()),
+    )
+
+
+def command_name(module: str) -> str:
+    """The command as the user typed it: ``c2i-run`` from the console script, else
+    ``python -m MODULE``."""
+    invoked = Path(sys.argv[0]).name
+    return invoked if invoked.startswith("c2i-") else f"python -m {module}"
+
+
+def interrupted(out: Path, resumable: bool) -> int:
+    """Tell what a Ctrl-C kept; the shell's exit code of an interrupted command."""
+    how = "add --resume to continue in" if resumable else "finished parts are not kept; rerun into"
+    print(f"\ninterrupted: {how} {out}", file=sys.stderr)
+    return INTERRUPTED
+
+
+INTERRUPTED = 130  # the shell's code for a command stopped by Ctrl-C

@@ -51,6 +51,19 @@ class Domain:
         parts = [p for p in parts if p is not None]
         return Windows.concat(parts) if parts else None
 
+    def summary(self) -> dict[str, Any]:
+        """What a run and ``summary.json`` say about the domain: knobs, split sizes, statistics
+        and content hash."""
+        return {
+            "name": self.name,
+            "family": self.family,
+            "generator": self.generator,
+            "knobs": self.knobs,
+            "splits": {split: len(self.scenes[split]) for split in SPLITS},
+            "stats": self.stats,
+            "hash": self.hash,
+        }
+
 
 def window_members(
     scene: Scene, length: int, stride: int = 1, min_agents: int = 1

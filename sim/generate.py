@@ -12,28 +12,17 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from c2inet.errors import InputError
 from c2inet.files import writable_folder, write_text_atomic
 from sim.cli import add_workers, parse, parser
 from sim.data import SPLITS, Domain
 from sim.domains import build_domain
+from sim.experiment.config import parse_settings
 from sim.io import write_ethucy, write_npz, write_parquet
 from sim.scenario import parse_scenario
 from viz.cli import guarded
 
 STAT_COLUMNS = ("mean_speed", "min_separation", "heading_change", "density", "overlaps")
-
-
-def domain_summary(domain: Domain) -> dict:
-    """The summary.json entry of one domain."""
-    return {
-        "name": domain.name,
-        "family": domain.family,
-        "generator": domain.generator,
-        "knobs": domain.knobs,
-        "splits": {split: len(domain.scenes[split]) for split in SPLITS},
-        "stats": domain.stats,
-        "hash": domain.hash,
-    }
 
 
 def _stat(value) -> str:
@@ -72,13 +61,19 @@ def main(argv: list[str] | None = None) -> int:
     p = parser("sim.generate", __doc__.splitlines()[0], examples)
     p.add_argument("--out", type=Path, help="output folder (required)")
     p.add_argument("--format", choices=sorted(WRITERS), default="parquet")
+    p.add_argument(
+        "--set", action="append", default=[], metavar="data.KNOB=VALUE", help="override a knob"
+    )
     add_workers(p)
     args = parse(p, sys.argv[1:] if argv is None else argv)
     if args is None:
         return 0
     if args.out is None:
         p.error("the following arguments are required: --out")
-    curriculum = parse_scenario(args.scenario, args.scenarios_dir)
+    settings = parse_settings(args.set)
+    for scope in set(settings) - {"data"}:
+        raise InputError(f"--set {scope}.*: generate takes only data.KNOB=VALUE")
+    curriculum = parse_scenario(args.scenario, args.scenarios_dir, settings.get("data"))
     writable_folder(args.out, "--out")
     domains = []
     for spec in tqdm(curriculum, desc="domains", unit="domain", file=sys.stderr):
@@ -91,12 +86,12 @@ def main(argv: list[str] | None = None) -> int:
         "scenario": args.scenario,
         "seed": args.seed,
         "format": args.format,
-        "domains": [domain_summary(d) for d in domains],
+        "domains": [d.summary() for d in domains],
     }
     write_text_atomic(args.out / "summary.json", json.dumps(summary, indent=2) + "\n")
     knob_names = sorted({s.family.knob for s in curriculum if s.family.knob})
     print(format_table(domains, knob_names))
-    print(f"wrote {len(domains)} domains to {args.out}")
+    print(f"wrote {len(domains)} domains to {args.out}: summary.json lists them")
     return 0
 
 

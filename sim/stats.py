@@ -132,3 +132,10 @@ def realised_summary(
         "heading_change": moves["heading_change"],
         "first_speed": float(np.nanmean(profiles["first_speed"])),
     }
+
+
+def relative_difference(value: float, reference: float) -> float:
+    """(value - reference) / |reference|; 0 when both are 0."""
+    if reference == 0:
+        return 0.0 if value == 0 else float("inf")
+    return (value - reference) / abs(reference)

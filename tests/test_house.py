@@ -1,5 +1,7 @@
-"""The house rules of DESIGN.md, checked: imports point one way (``sim`` -> ``viz`` -> ``c2inet``)
-and the learner, with its tests, loads and trains without the simulators or the recorder."""
+"""The house rules of DESIGN.md, checked: imports point one way (``sim`` -> ``viz`` -> ``c2inet``);
+inside ``sim``, floors (the world, then the engine ``sim.experiment``, then the studies, then
+the commands) import only downwards, with no circle; and the learner, with its tests, loads and
+trains without the simulators or the recorder."""
 
 import ast
 import re
@@ -32,6 +34,78 @@ def test_imports_point_one_way(package):
     for path in sorted((ROOT / package).rglob("*.py")):
         wrong = imported(path) & FORBIDDEN[package]
         assert not wrong, f"{path.relative_to(ROOT)} imports {sorted(wrong)}"
+
+
+COMMANDS = {"sim.run", "sim.sweep", "sim.generate", "sim.study", "sim.cli", "sim.fuzz"}
+FLOOR_NAMES = ("the world", "the engine", "the studies", "the commands")
+
+
+def module_name(path: Path) -> str:
+    parts = path.relative_to(ROOT).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def floor(module: str) -> int:
+    """0 the world (scenario language, families, generators, data, io, statistics), 1 the
+    engine, 2 the studies, 3 the commands and their shared options."""
+    if module in COMMANDS:
+        return 3
+    if module.startswith("sim.studies"):
+        return 2
+    if module.startswith("sim.experiment"):
+        return 1
+    return 0
+
+
+def sim_imports(path: Path) -> set[str]:
+    """The ``sim`` modules ``path`` imports, wherever in the file (a name imported from a
+    package that is a module of it counts as that module)."""
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found |= {a.name for a in node.names if a.name.split(".")[0] == "sim"}
+        elif isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("sim"):
+            for alias in node.names:
+                inner = f"{node.module}.{alias.name}"
+                is_module = (ROOT / inner.replace(".", "/")).with_suffix(".py").exists()
+                found.add(inner if is_module else node.module)
+    return found
+
+
+def sim_graph() -> dict[str, set[str]]:
+    """Module -> the sim modules it imports; the package facade ``sim/__init__.py``, which
+    re-exports the engine's names lazily, is left out."""
+    paths = [p for p in (ROOT / "sim").rglob("*.py") if p != ROOT / "sim" / "__init__.py"]
+    return {module_name(p): sim_imports(p) - {"sim"} for p in paths}
+
+
+def test_sim_floors_import_only_downwards():
+    graph = sim_graph()
+    assert {m for m in graph if floor(m) == 1} >= {"sim.experiment.outputs", "sim.experiment.sweep"}
+    for module, imports in sorted(graph.items()):
+        for target in sorted(imports):
+            assert floor(target) <= floor(module), (
+                f"{module} ({FLOOR_NAMES[floor(module)]}) imports {target} "
+                f"({FLOOR_NAMES[floor(target)]})"
+            )
+    assert not any(graph[m] & COMMANDS for m in graph if floor(m) < 3)
+
+
+def test_sim_has_no_import_circle():
+    graph = sim_graph()
+    state: dict[str, int] = {}  # 1 on the current path, 2 done
+
+    def visit(module: str, path: list[str]) -> None:
+        state[module] = 1
+        for target in sorted(graph.get(module, ())):
+            assert state.get(target) != 1, "circle: " + " -> ".join([*path, module, target])
+            if target not in state:
+                visit(target, [*path, module])
+        state[module] = 2
+
+    for module in sorted(graph):
+        if module not in state:
+            visit(module, [])
 
 
 BLOCKER = """

@@ -1,11 +1,13 @@
 """Backbones by name: an encoder of observed displacements and a decoder of future ones.
 
 A backbone has ``context_dim``, ``encode(obs_rel, batch) -> (N, context_dim)`` and
-``decode(cond, last_rel) -> (12, S, N, 2)``; ``tests/c2inet/test_backbones.py`` checks every
-registered one against that contract.
+``decode(cond, last_rel) -> (12, S, N, 2)``; one file each, registered with
+``@register("name")`` (``c2inet.backbones.base``) and checked by ``c2inet.backbones.checker``
+(a test runs it over every registered one).
 """
 
-from c2inet.backbones.stgat import STGAT
-from c2inet.backbones.stgcnn import STGCNN
+from c2inet.backbones.base import BACKBONES, discover, register
 
-BACKBONES = {"stgat": STGAT, "stgcnn": STGCNN}
+discover()
+
+__all__ = ["BACKBONES", "discover", "register"]

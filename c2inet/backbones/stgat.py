@@ -9,6 +9,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+from c2inet.backbones.base import register
 from c2inet.batch import Batch
 
 
@@ -89,6 +90,7 @@ class Decoder(nn.Module):
         return torch.stack(outputs).unflatten(1, (samples, agents))
 
 
+@register("stgat")
 class STGAT(nn.Module):
     """The backbone as one module: ``encode`` observed displacements, ``decode`` from a vector.
 

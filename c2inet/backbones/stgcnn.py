@@ -16,6 +16,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+from c2inet.backbones.base import register
 from c2inet.batch import Batch
 from c2inet.data import OBS_LEN
 
@@ -79,6 +80,7 @@ class TXPDecoder(nn.Module):
         return last_rel.expand(samples, agents, 2) + steps if self.residual else steps
 
 
+@register("stgcnn")
 class STGCNN(nn.Module):
     """The backbone as one module: ``encode`` observed displacements, ``decode`` a condition."""
 

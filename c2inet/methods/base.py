@@ -71,9 +71,11 @@ class Method:
     # the random streams): the checker requires them to change the numbers
     inert: ClassVar[dict[str, Any] | None] = None
 
-    def __init_subclass__(cls, **kwargs):
+    def __init_subclass__(cls, register: bool = True, **kwargs):
+        """Defining a subclass registers it under its name (``register=False``: not)."""
         super().__init_subclass__(**kwargs)
-        METHODS[cls.name] = cls
+        if register:
+            METHODS[cls.name] = cls
 
     def __init__(self, model_config: ModelConfig, options: dict[str, Any] | None = None):
         self.model_config = model_config

@@ -26,7 +26,7 @@ from numba import njit
 from c2inet.errors import InputError
 from c2inet.options import check_range
 from sim.data import SPLITS, Domain, Scene
-from sim.generators import Generator, child_seed
+from sim.generators.base import Generator, child_seed
 from sim.generators.crowd_controller import Controller
 from sim.stats import motion_stats, proximity_stats
 

@@ -20,7 +20,7 @@ from c2inet.data import OBS_LEN, PRED_LEN
 from c2inet.errors import InputError, quote
 from c2inet.options import check_range
 from sim.data import SPLITS, Domain, Scene
-from sim.generators import Generator
+from sim.generators.base import Generator
 from sim.stats import motion_stats, proximity_stats
 
 MAX_COORDINATE = 1e6  # metres: beyond it a coordinate is a unit error, and statistics overflow
@@ -188,6 +188,7 @@ class FilesGenerator(Generator):
     """Recorded trajectories read from ETH-UCY-format text files."""
 
     name = "files"
+    seeded = False  # a recording is the same whatever the seed
     version = 3  # 2: no overlap count; 3: sparse tracks, a scene per group of overlapping tracks
     Knobs = FilesKnobs
 

@@ -27,7 +27,7 @@ import numpy as np
 from c2inet.errors import InputError
 from c2inet.options import check_range
 from sim.data import OBS_LEN, PRED_LEN, SPLITS, Domain, Scene, window_members
-from sim.generators import Generator, child_seed
+from sim.generators.base import Generator, child_seed
 from sim.stats import motion_stats, proximity_stats
 
 ENVS = {"highway": "highway-v0", "merge": "merge-generic-v1", "roundabout": "roundabout-generic-v1"}

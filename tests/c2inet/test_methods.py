@@ -32,7 +32,7 @@ def test_the_paper_baselines_and_the_staples_are_registered():
     assert paper | staples | {"finetune", "joint", "cv", "c2inet-online"} <= set(METHODS)
 
 
-class InertLwF(LwF):
+class InertLwF(LwF, register=False):
     """LwF whose distillation never runs."""
 
     name = "test-inert-lwf"
@@ -41,7 +41,7 @@ class InertLwF(LwF):
         pass
 
 
-class Forgetful(SI):
+class Forgetful(SI, register=False):
     """SI that saves nothing between tasks: a resumed run loses its importance."""
 
     name = "test-forgetful-si"
@@ -53,7 +53,7 @@ class Forgetful(SI):
         pass
 
 
-class Noisy(Finetune):
+class Noisy(Finetune, register=False):
     """Fine-tuning with a term drawn from the operating system's randomness."""
 
     name = "test-noisy"
@@ -62,21 +62,13 @@ class Noisy(Finetune):
         ctx.add_loss("noise", 1e-3 * random.SystemRandom().random() * ctx.loss)
 
 
-class Undocumented(EWC):
+class Undocumented(EWC, register=False):
     """EWC with an extra hook its module's docstring does not name."""
 
     name = "test-undocumented"
 
     def after_step(self, ctx):
         pass
-
-
-@pytest.fixture
-def broken():
-    """Register the broken methods for one test only."""
-    yield
-    for cls in (InertLwF, Forgetful, Noisy, Undocumented):
-        METHODS.pop(cls.name, None)
 
 
 @pytest.mark.parametrize(
@@ -88,9 +80,10 @@ def broken():
         (Undocumented, "after_step"),
     ],
 )
-def test_the_checker_catches_broken_methods(broken, cls, message):
+def test_the_checker_catches_broken_methods(cls, message):
     with pytest.raises(MethodCheckError, match=message):
         check_method(cls)
+    assert cls.name not in METHODS
 
 
 def test_the_checker_catches_a_trainer_that_leaks_later_tasks(monkeypatch):

@@ -7,8 +7,9 @@ from c2inet.checker import CHECK_CONFIG, turning_tasks
 from c2inet.methods.base import get_method
 from c2inet.model import ModelConfig
 from c2inet.stream import StreamLearner
-from sim import active
 from sim.experiment import ExperimentConfig
+from sim.studies import active
+from sim.study import main
 
 
 def quick(scenario: str, *methods: str) -> ExperimentConfig:
@@ -29,7 +30,7 @@ def test_active_strategies_choose_differently_and_draw_the_same_scenes(tmp_path)
     source = active.SceneSource(specs, 3, 0)
     np.testing.assert_array_equal(source.draw(1, 2).positions, source.draw(1, 2).positions)
     assert not np.array_equal(source.draw(1, 2).positions, source.draw(2, 2).positions)
-    active.write_active(report, tmp_path / "out")
+    active.Active().write(report, tmp_path / "out")
     assert "final worst ADE" in (tmp_path / "out" / "active.md").read_text()
 
 
@@ -53,6 +54,6 @@ def test_needs_rank_grid_values_by_error_relative_error_and_spread():
     ],
 )
 def test_bad_input_is_one_error_line(tmp_path, capsys, argv, message):
-    assert active.main([*argv, "--out", str(tmp_path)]) == 2
+    assert main(["active", *argv, "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1

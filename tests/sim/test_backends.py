@@ -14,7 +14,7 @@ DRIVER = textwrap.dedent(
     """
     import sys, time
     from pathlib import Path
-    from sim.backends import run_jobs
+    from sim.experiment.backends import run_jobs
 
     def sleeper(job, folder):
         (Path(folder) / f"{job}.pid").write_text(str(__import__("os").getpid()))
@@ -78,7 +78,7 @@ def test_a_bad_ray_address_is_refused_before_any_work(address, message):
 def test_a_listening_address_is_accepted():
     import socket
 
-    from sim.backends import check_ray_address
+    from sim.experiment.backends import check_ray_address
 
     with socket.create_server(("127.0.0.1", 0)) as server:
         check_ray_address(f"127.0.0.1:{server.getsockname()[1]}")

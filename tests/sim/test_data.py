@@ -65,6 +65,16 @@ def run_generate(*args):
     )
 
 
+def test_generate_takes_data_settings_and_refuses_other_scopes(tmp_path, family_dir):
+    common = ["--scenario", "tiny_noise_0.1", "--scenarios-dir", str(family_dir)]
+    done = run_generate(*common, "--out", str(tmp_path / "a"), "--set", "data.agents=5")
+    assert done.returncode == 0, done.stderr
+    (domain,) = json.loads((tmp_path / "a" / "summary.json").read_text())["domains"]
+    assert domain["knobs"]["agents"] == 5
+    done = run_generate(*common, "--out", str(tmp_path / "b"), "--set", "train.lr=0.1")
+    assert done.returncode == 2 and "generate takes only data.KNOB" in done.stderr
+
+
 @pytest.mark.parametrize("fmt", ["parquet", "ethucy", "npz"])
 def test_generate_is_byte_identical_for_a_seed_and_differs_for_another(tmp_path, family_dir, fmt):
     outs = []

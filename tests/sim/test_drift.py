@@ -6,8 +6,9 @@ import json
 import numpy as np
 import pytest
 
-from sim import drift
 from sim.experiment import ExperimentConfig
+from sim.studies import drift
+from sim.study import main
 
 
 def quick(scenario: str, *methods: str) -> ExperimentConfig:
@@ -38,7 +39,7 @@ def test_drift_report_gives_boundaries_by_mode_and_marks_who_needs_them(tmp_path
     assert not reports["none"]["methods"]["finetune"]["needs_boundaries"]
     ewc = [np.asarray(reports[mode]["methods"]["ewc"]["ade"]) for mode in ("none", "chunks")]
     assert ewc[0].shape == (chunks, 6) and not np.array_equal(ewc[0], ewc[1])  # EWC woke up
-    drift.write_drift(reports["chunks"], tmp_path / "out")
+    drift.Drift().write(reports["chunks"], tmp_path / "out")
     assert "needs boundaries" in (tmp_path / "out" / "drift.md").read_text()
     assert json.loads((tmp_path / "out" / "drift.json").read_text())["boundaries"] == "chunks"
     assert (tmp_path / "out" / "drift.png").read_bytes()[:4] == b"\x89PNG"
@@ -59,6 +60,6 @@ def test_forgetting_without_boundaries_counts_from_where_the_stream_reached_a_pr
     ],
 )
 def test_bad_input_is_one_error_line(tmp_path, capsys, argv, message):
-    assert drift.main([*argv, "--out", str(tmp_path), "--cache", str(tmp_path / "cache")]) == 2
+    assert main(["drift", *argv, "--out", str(tmp_path), "--cache", str(tmp_path / "cache")]) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1

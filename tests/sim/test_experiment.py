@@ -15,7 +15,7 @@ import pytest
 
 from c2inet.errors import InputError
 from sim.experiment import Execution, ExperimentConfig, run_experiment
-from sim.outputs import claim, output_folder
+from sim.experiment.outputs import claim, output_folder
 
 QUICK = ["--scenario", "crowd_noise_0.1..0.3", "--quick", "--methods", "c2inet-online,finetune"]
 
@@ -187,7 +187,7 @@ def test_one_process_at_a_time_holds_a_run_folder(tmp_path):
     """Issue 26, item 6: a second run or resume of a folder in use gets one line."""
     import fcntl
 
-    from sim.outputs import LOCK
+    from sim.experiment.outputs import LOCK
 
     config = ExperimentConfig("crowd_noise_0.1", methods=("cv",), quick=True, record=False)
     run = tmp_path / "run"
@@ -272,7 +272,8 @@ def test_the_cache_must_be_a_writable_folder(tmp_path):
 )
 def test_a_damaged_finished_job_is_one_line_naming_the_file(tmp_path, damage, message):
     """Issue 26, item 3: a damaged result.json or predictions.npz was a traceback."""
-    from sim.experiment import Job, JobResult
+    from sim.experiment import Job
+    from sim.experiment.jobs import JobResult
 
     job = tmp_path / "jobs" / "cv" / "seed_0"
     job.mkdir(parents=True)
@@ -299,7 +300,7 @@ def test_a_damaged_or_foreign_checkpoint_is_one_line_naming_it(tmp_path):
 
 def test_folder_names_stay_short_and_distinct_for_long_scenarios():
     """Issue 26, item 7: a valid 64-value scenario made a 394-character folder name."""
-    from sim.outputs import MAX_NAME, run_root
+    from sim.experiment.outputs import MAX_NAME, run_root
 
     values = ",".join(f"0.{i:03d}" for i in range(1, 65))
     long_one, other = f"crowd_noise_{values}", f"crowd_noise_{values},0.9"

@@ -7,15 +7,10 @@ import pytest
 
 from sim.domains import build_domain
 from sim.experiment import ExperimentConfig
-from sim.fidelity import (
-    compare_statistics,
-    fidelity_report,
-    main,
-    relative_difference,
-    write_fidelity,
-)
 from sim.scenario import parse_scenario
-from sim.stats import realised_summary, scene_profiles
+from sim.stats import realised_summary, relative_difference, scene_profiles
+from sim.studies.fidelity import Fidelity, compare_statistics, fidelity_report
+from sim.study import main
 
 
 def domains(scenario: str, data=None):
@@ -67,7 +62,7 @@ def test_transfer_report_trains_tests_and_writes(tmp_path):
     pair = report["pairs"][1]
     assert pair["domains"] == ["crowd_radius_0.5", "orca_radius_0.5"]
     assert pair["transfer"]["ratio"] == pytest.approx(matrix[1, 3] / matrix[3, 3])
-    write_fidelity(report, tmp_path / "out")
+    Fidelity().write(report, tmp_path / "out")
     written = json.loads((tmp_path / "out" / "fidelity.json").read_text())
     assert written["transfer"]["ade"] == report["transfer"]["ade"]
     assert "Transfer ratio within the target" in (tmp_path / "out" / "fidelity.md").read_text()
@@ -82,11 +77,11 @@ def test_transfer_report_trains_tests_and_writes(tmp_path):
     ],
 )
 def test_bad_input_is_one_error_line_and_exit_code_2(tmp_path, capsys, argv, message):
-    assert main([*argv, "--out", str(tmp_path), "--no-transfer"]) == 2
+    assert main(["fidelity", *argv, "--out", str(tmp_path), "--no-transfer"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and message in err and err.count("\n") == 1
 
 
 def test_the_reference_is_required(capsys):
-    assert main(["--scenario", "crowd_radius_0.1"]) == 2
+    assert main(["fidelity", "--scenario", "crowd_radius_0.1"]) == 2
     assert "required: --reference" in capsys.readouterr().err

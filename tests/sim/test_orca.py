@@ -8,12 +8,12 @@ from scipy.spatial import cKDTree
 
 from c2inet.errors import InputError
 from sim.domains import build_domain
-from sim.fidelity import TOLERANCE, relative_difference
 from sim.generators.crowd import CrowdKnobs, simulate
 from sim.generators.crowd_controller import ORCA_RANGE, orca_neighbours
 from sim.generators.orca import orca_velocities
 from sim.scenario import parse_scenario
-from sim.stats import realised_summary
+from sim.stats import realised_summary, relative_difference
+from sim.studies.fidelity import TOLERANCE
 
 FIXTURE = Path(__file__).parent / "data" / "rvo2_velocities.npz"  # benchmarks/orca_reference.py
 

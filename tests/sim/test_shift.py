@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from c2inet.errors import InputError
-from sim import shift
 from sim.experiment import Execution, ExperimentConfig
+from sim.studies import shift
 
 
 def quick(scenario: str, *methods: str) -> ExperimentConfig:
@@ -15,6 +15,7 @@ def quick(scenario: str, *methods: str) -> ExperimentConfig:
 def test_shift_runs_two_task_curricula_and_measures_both_shifts(tmp_path):
     base = quick("crowd_noise_0.1,0.3,0.6", "finetune")
     summary = shift.run_shift(["crowd_noise_0.1,0.3,0.6"], base, tmp_path, Execution(workers=1))
+    shift.Shift().write(summary, tmp_path)
     (family,) = summary["families"]
     assert [r["domain"] for r in family["rows"]] == ["crowd_noise_0.3", "crowd_noise_0.6"]
     distance = [r["statistics_distance"] for r in family["rows"]]

@@ -1,32 +1,66 @@
-"""The paper's studies as commands: each writes its table, JSON and figure, and its variants
-really differ (a switch that changed nothing would show identical rows)."""
+"""The studies: one registry and one command. The paper's studies write their table, JSON and
+figure, and their variants really differ (a switch that changed nothing would show identical
+rows); every registered study takes the shared options and refuses a foreign folder."""
 
 import json
 
-from sim.experiment import Execution, ExperimentConfig
-from sim.study import STUDIES, main, run_study
+import pytest
+
+from sim.studies.base import STUDIES, Study, discover, register
+from sim.studies.paper import PRESETS
+from sim.study import main, study_parser
 
 
-def test_table4_writes_its_table_json_and_figure(tmp_path):
-    base = ExperimentConfig("crowd_radius_0.1,0.2", quick=True, record=False)
-    summary = run_study("table4", base, tmp_path, Execution(workers=1), ("crowd_radius_0.1,0.2",))
-    rows = summary["rows"]
-    assert [r["variant"] for r in rows] == list(STUDIES["table4"].variants)
+def test_table4_writes_its_table_json_and_figure(tmp_path, capsys):
+    argv = ["table4", "--quick", "--scenario", "crowd_radius_0.1,0.2", "--no-record"]
+    assert main([*argv, "--workers", "1", "--out", str(tmp_path)]) == 0
+    assert f"wrote {tmp_path}: open study.md" in capsys.readouterr().err
+    rows = json.loads((tmp_path / "study.json").read_text())["rows"]
+    assert [r["variant"] for r in rows] == list(PRESETS["table4"].variants)
     finals = [r["avg_seen_ade"][-1] for r in rows]
     assert len(set(finals)) > 1, "every switch changed nothing"
-    assert json.loads((tmp_path / "study.json").read_text())["rows"][0]["variant"] == "full"
     table = (tmp_path / "study.md").read_text()
     assert table.count("| no ") == 3 and "The paper:" in table
     assert (tmp_path / "study.png").read_bytes()[:4] == b"\x89PNG"
 
 
 def test_orders_are_curricula_of_their_own():
-    fig10 = STUDIES["fig10"]
+    fig10 = PRESETS["fig10"]
     assert len(fig10.scenarios) == 6 and fig10.by == "order"
     assert "eth_ucy_hotel,univ,eth,zara1,zara2" in fig10.scenarios
+
+
+def test_every_study_is_registered_once_with_the_shared_options():
+    studies = discover()
+    assert set(studies) == {"active", "drift", "fidelity", "shift", "table4", "fig9", "fig10"}
+    for name, study in studies.items():
+        options = {a.dest for a in study_parser(study)._actions}
+        shared = {"methods", "epochs", "seeds", "set", "cache", "overwrite", "out", "threads"}
+        assert shared <= options, name
+        assert ({"resume", "jobs", "backend", "no_record"} <= options) == study.jobs, name
+    with pytest.raises(ValueError, match="registered twice"):
+        register(STUDIES["drift"])
+    with pytest.raises(ValueError, match="empty"):
+        register(Study())
 
 
 def test_an_unknown_study_is_one_error_line(capsys):
     assert main(["tabel4"]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "invalid choice: 'tabel4'" in err
+    assert err.count("\n") == 1 and "'tabel4': unknown; did you mean 'table4'?" in err
+
+
+@pytest.mark.parametrize("name", ["drift", "fidelity"])
+def test_a_study_refuses_a_folder_holding_the_users_files(tmp_path, capsys, name):
+    (tmp_path / "notes.txt").write_text("mine")
+    argv = [name, "--scenario", "crowd_radius_0.1,0.2", "--reference", "orca_radius_0.1,0.2"]
+    argv = argv if name == "fidelity" else argv[:3]
+    assert main([*argv, "--quick", "--out", str(tmp_path), "--overwrite"]) == 2
+    assert "holds no run of this project" in capsys.readouterr().err
+    assert (tmp_path / "notes.txt").read_text() == "mine"
+
+
+def test_the_listing_names_every_study(capsys):
+    assert main([]) == 2
+    out = capsys.readouterr().out
+    assert all(name in out for name in discover())

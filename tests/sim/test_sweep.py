@@ -9,7 +9,7 @@ import pytest
 
 from c2inet.errors import InputError
 from sim.experiment import ExperimentConfig
-from sim.sweep import COLUMNS, SweepConfig, parse_grid
+from sim.experiment.sweep import COLUMNS, SweepConfig, parse_grid
 
 
 def test_a_sweep_runs_the_cross_product_and_writes_tidy_results(tmp_path):

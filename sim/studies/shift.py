@@ -1,4 +1,4 @@
-"""``python -m sim.shift``: forgetting and transfer against the size of the shift.
+"""``python -m sim.study shift``: forgetting and transfer against the size of the shift.
 
 Each ``--scenario`` (e.g. ``crowd_noise_0.1..0.6``) names a base domain, its first value, and
 the shifted ones, the rest: every method runs the two-task curriculum base then shifted, for
@@ -14,7 +14,7 @@ It writes ``shift.json``, ``shift.md`` and ``shift.png`` to ``--out`` beside the
 
 from __future__ import annotations
 
-import sys
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -22,17 +22,14 @@ import numpy as np
 import pyarrow.parquet as pq
 from scipy.stats import spearmanr
 
-from c2inet.files import write_atomic
-from sim.cli import parse, parser
-from sim.curriculum import knob_grid, make_tasks
 from sim.data import Domain
 from sim.experiment import Execution, ExperimentConfig
-from sim.fidelity import relative_difference
-from sim.outputs import write_report
-from sim.run import add_experiment_options, execution_of, experiment_options
+from sim.experiment.curriculum import knob_grid, make_tasks
+from sim.experiment.sweep import SweepConfig, run_sweep
 from sim.scenario import DomainSpec, parse_scenario
-from sim.sweep import SweepConfig, run_sweep
-from viz.cli import guarded
+from sim.stats import relative_difference
+from sim.studies.base import Study, register
+from viz.figures import shift_figure
 
 DEFAULT_METHODS = "finetune,ewc,derpp,c2inet-online"
 COUNTS = ("overlaps", "crashes")  # statistics that count events rather than measure motion
@@ -171,40 +168,6 @@ def shift_markdown(summary: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def shift_figure(summary: dict[str, Any], path: Path) -> None:
-    """Per family (columns): forgetting against the knob shift, against the statistics
-    distance, and the transfer gap against the knob shift (rows), one line per method."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    families = summary["families"]
-    fig, axes = plt.subplots(3, len(families), figsize=(4.6 * len(families), 9), squeeze=False)
-    for column, family in enumerate(families):
-        rows = family["rows"]
-        for method in summary["methods"]:
-            lost = [r["methods"][method]["forgetting"] for r in rows]
-            spread = [r["methods"][method]["forgetting_std"] for r in rows]
-            gap = [r["methods"][method]["gap"] for r in rows]
-            shifts = [r["knob_shift"] for r in rows]
-            distance = [r["statistics_distance"] for r in rows]
-            axes[0, column].errorbar(shifts, lost, spread, fmt="-o", ms=3, capsize=2, label=method)
-            order = np.argsort(distance)
-            axes[1, column].plot(np.take(distance, order), np.take(lost, order), "-o", ms=3)
-            axes[2, column].plot(shifts, gap, "-o", ms=3)
-        axes[0, column].set_title(f"{family['family']} from {family['base']:g}", fontsize=9)
-        axes[0, column].set(xlabel=f"{family['knob']} shift", ylabel="forgetting (m)")
-        axes[1, column].set(xlabel="realised-statistics distance", ylabel="forgetting (m)")
-        axes[2, column].set(xlabel=f"{family['knob']} shift", ylabel="transfer gap (m)")
-        for ax in axes[:, column]:
-            ax.axhline(0, color="0.7", lw=0.8)
-    axes[0, 0].legend(fontsize=7)
-    fig.tight_layout()
-    write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
-    plt.close(fig)
-
-
 def run_shift(
     scenarios: list[str],
     base: ExperimentConfig,
@@ -214,46 +177,38 @@ def run_shift(
     overwrite: bool = False,
     argv: list[str] | None = None,
 ) -> dict[str, Any]:
-    """Run every two-task curriculum of ``scenarios`` as one sweep into ``out``, summarise it
-    and write ``shift.json``, ``shift.md`` and ``shift.png``."""
+    """Run every two-task curriculum of ``scenarios`` as one sweep into ``out``; returns the
+    summary."""
     pairs = []
     for scenario in scenarios:
         first, shifted = shift_grid(scenario, list(base.scenarios_dir))
         pairs += [f"{first.name}+{spec.name}" for spec in shifted]
     run_sweep(SweepConfig(base, tuple(pairs)), out, execution, resume, overwrite, argv)
-    summary = summarise_shift(scenarios, base, out, execution.cache)
-    write_report(out, "shift", summary, shift_markdown, shift_figure)
-    return summary
+    return summarise_shift(scenarios, base, out, execution.cache)
 
 
-@guarded
-def main(argv: list[str] | None = None) -> int:
+class Shift(Study):
+    name = "shift"
+    title = __doc__.splitlines()[0].split(": ", 1)[1].rstrip(".")
     examples = (
-        "  python -m sim.shift --scenario crowd_noise_0.1..0.6 --scenario crowd_radius_0.1..0.6 "
-        "--seeds 3 --jobs 2\n"
-        "  python -m sim.shift --scenario crowd_noise_0.1,0.3,0.6 --quick --out /tmp/shift"
+        "--scenario crowd_noise_0.1..0.6 --scenario crowd_radius_0.1..0.6 --seeds 3 --jobs 2",
+        "--scenario crowd_noise_0.1,0.3,0.6 --quick --out /tmp/shift",
     )
-    p = parser("sim.shift", __doc__.splitlines()[0], examples, scenarios=True)
-    add_experiment_options(p)
-    p.set_defaults(methods=DEFAULT_METHODS)
-    p.add_argument("--out", type=Path, default=Path("shift"), help="the folder (default shift)")
-    argv = sys.argv[1:] if argv is None else argv
-    args = parse(p, argv)
-    if args is None:
-        return 0
-    options = {**experiment_options(args), "record": False}
-    base = ExperimentConfig(args.scenario[0], **options)
-    try:
-        summary = run_shift(
-            list(args.scenario), base, args.out, execution_of(args), args.resume,
-            args.overwrite, ["python", "-m", "sim.shift", *argv],
-        )  # fmt: skip
-    except KeyboardInterrupt:
-        print(f"\ninterrupted: add --resume to continue in {args.out}", file=sys.stderr)
-        return 130
-    print(shift_markdown(summary))
-    return 0
+    methods = DEFAULT_METHODS
+    jobs = True
+    scenarios = True
+
+    def run(self, args, config, execution, out, argv):
+        config = replace(config, record=False)
+        return run_shift(
+            list(args.scenario), config, out, execution, args.resume, args.overwrite, argv
+        )
+
+    def markdown(self, report):
+        return shift_markdown(report)
+
+    def figure(self, report, path):
+        shift_figure(report, path)
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+register(Shift())

@@ -1,4 +1,4 @@
-"""``python -m sim.fidelity``: how closely a generated family resembles a reference family.
+"""``python -m sim.study fidelity``: how closely a generated family resembles a reference family.
 
 The reference is any family: RVO2's scenes (``orca_radius``), or a user's own recordings through
 a ``files`` family. Domains pair by position (the first of ``--scenario`` with the first of
@@ -18,27 +18,22 @@ It writes ``fidelity.json``, ``fidelity.md`` and ``fidelity.png`` to ``--out``.
 
 from __future__ import annotations
 
-import sys
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch
 from scipy.stats import wasserstein_distance
 
 from c2inet.errors import InputError
-from c2inet.files import write_atomic
 from c2inet.trainer import ContinualTrainer, Task, evaluate
-from sim.cli import parse, parser
-from sim.curriculum import make_tasks
 from sim.data import Domain
 from sim.experiment import ExperimentConfig
-from sim.outputs import write_report
-from sim.run import add_learning_options, learning_config
+from sim.experiment.curriculum import make_tasks
 from sim.scenario import parse_scenario
-from sim.stats import PROFILES, realised_summary, scene_profiles
-from viz.cli import guarded
+from sim.stats import PROFILES, realised_summary, relative_difference, scene_profiles
+from sim.studies.base import Study, register
+from viz.figures import fidelity_figure
 
 TOLERANCE = 0.10  # relative difference of a statistic that still counts as matched
 TRANSFER_TARGET = 1.2  # generated-trained over reference-trained error on the reference
@@ -78,13 +73,6 @@ def compare_statistics(generated: Domain, reference: Domain) -> dict[str, Any]:
         "wasserstein": distances,
         "histograms": histograms,
     }
-
-
-def relative_difference(value: float, reference: float) -> float:
-    """(value - reference) / |reference|; 0 when both are 0."""
-    if reference == 0:
-        return 0.0 if value == 0 else float("inf")
-    return (value - reference) / abs(reference)
 
 
 def transfer_matrix(config: ExperimentConfig, method: str, tasks: list[Task]) -> dict[str, Any]:
@@ -250,113 +238,42 @@ def _number(value: float | None) -> str:
     return "n/a" if value is None else f"{value:.4f}"
 
 
-def fidelity_figure(report: dict[str, Any], path: Path) -> None:
-    """Top: relative difference of each statistic per pair (the tolerance shaded), transfer
-    errors per pair, and the whole transfer matrix. Bottom: per-scene histograms of each
-    distribution, generated solid and reference dashed, one colour per pair."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    pairs = report["pairs"]
-    x = np.arange(len(pairs))
-    labels = [p["domains"][0].rsplit("_", 1)[-1] for p in pairs]
-    colours = plt.get_cmap("viridis")(np.linspace(0, 0.9, len(pairs)))
-    fig, axes = plt.subplots(2, 4, figsize=(18, 8))
-    ax = axes[0, 0]
-    ax.axhspan(-100 * report["tolerance"], 100 * report["tolerance"], color="0.9")
-    for name in pairs[0]["relative"]:
-        ax.plot(x, [100 * p["relative"][name] for p in pairs], "-o", label=name)
-    ax.set(xticks=x, xticklabels=labels, ylabel="generated vs reference (%)")
-    ax.set_title("realised statistics", fontsize=9)
-    ax.legend(fontsize=7)
-    ax = axes[0, 1]
-    if "transfer" in report:
-        for key, style, label in (
-            ("generated_on_reference", "-o", "trained on generated"),
-            ("reference_on_reference", "-s", "trained on reference"),
-            ("cv_on_reference", ":^", "constant velocity"),
-        ):
-            ax.plot(x, [p["transfer"][key] for p in pairs], style, label=label)
-        ax.set(xticks=x, xticklabels=labels, ylabel="ADE on the reference (m)")
-        ax.legend(fontsize=7)
-        ax = axes[0, 2]
-        matrix = np.asarray(report["transfer"]["ade"])
-        image = ax.imshow(matrix, cmap="magma_r")
-        ticks = [
-            t.rsplit("_", 1)[0][:12] + " " + t.rsplit("_", 1)[-1]
-            for t in report["transfer"]["tasks"]
-        ]
-        ax.set_xticks(range(len(ticks)), ticks, rotation=90, fontsize=6)
-        ax.set_yticks(range(len(ticks)), ticks, fontsize=6)
-        ax.set(xlabel="tested on", ylabel="trained on")
-        fig.colorbar(image, ax=ax, label="ADE (m)")
-    axes[0, 1].set_title("transfer to the reference", fontsize=9)
-    axes[0, 2].set_title("transfer matrix", fontsize=9)
-    legend = axes[0, 3]  # the key to the histograms below
-    for label, colour in zip(labels, colours, strict=True):
-        legend.plot([], [], color=colour, label=f"pair {label}")
-    legend.plot([], [], "k-", label="generated")
-    legend.plot([], [], "k--", label="reference")
-    legend.legend(loc="center", fontsize=8, title="histograms below", title_fontsize=8)
-    legend.axis("off")
-    for ax, name in zip(axes[1], PROFILES, strict=True):
-        for pair, colour in zip(pairs, colours, strict=True):
-            histogram = pair["histograms"][name]
-            if histogram is None:
-                continue
-            for side, style in zip(SIDES, ("-", "--"), strict=True):
-                ax.stairs(histogram[side], histogram["edges"], color=colour, linestyle=style)
-        ax.set_title(f"per-scene {name.replace('_', ' ')}", fontsize=9)
-        ax.set_ylabel("scenes")
-    fig.suptitle(f"{report['scenario']} against {report['reference']}", fontsize=10)
-    fig.tight_layout()
-    write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
-    plt.close(fig)
-
-
-def write_fidelity(report: dict[str, Any], out: Path) -> None:
-    """``fidelity.json``, ``fidelity.md`` and ``fidelity.png`` in ``out``."""
-    write_report(out, "fidelity", report, fidelity_markdown, fidelity_figure)
-
-
-@guarded
-def main(argv: list[str] | None = None) -> int:
+class Fidelity(Study):
+    name = "fidelity"
+    title = __doc__.splitlines()[0].split(": ", 1)[1].rstrip(".")
     examples = (
-        "  python -m sim.fidelity --scenario crowd_radius_0.1..0.6 "
-        "--reference orca_radius_0.1..0.6\n"
-        "  python -m sim.fidelity --scenario crowd_radius_0.3 --reference orca_radius_0.3 "
-        "--no-transfer"
+        "--scenario crowd_radius_0.1..0.6 --reference orca_radius_0.1..0.6",
+        "--scenario crowd_radius_0.3 --reference orca_radius_0.3 --no-transfer",
     )
-    p = parser("sim.fidelity", __doc__.splitlines()[0], examples)
-    p.add_argument("--reference", help="the family to compare with, e.g. orca_radius_0.1..0.6")
-    p.add_argument("--method", default="finetune", help="the method of the transfer runs")
-    p.add_argument("--no-transfer", action="store_true", help="statistics only (no training)")
-    p.add_argument("--out", type=Path, default=Path("fidelity"), help="folder of the report")
-    add_learning_options(p)
-    args = parse(p, sys.argv[1:] if argv is None else argv)
-    if args is None:
-        return 0
-    if not args.reference:
-        p.error("the following arguments are required: --reference")
-    torch.set_num_threads(args.threads)
-    config = learning_config(args, (args.method,))
-    report = fidelity_report(
-        args.scenario,
-        args.reference,
-        config,
-        args.method,
-        not args.no_transfer,
-        args.cache,
-        args.workers,
-        args.memory_budget,
-    )
-    write_fidelity(report, args.out)
-    print(fidelity_markdown(report))
-    print(f"wrote {args.out}/fidelity.json, fidelity.md, fidelity.png", file=sys.stderr)
-    return 0
+    one_method = True
+
+    def add_options(self, p):
+        p.add_argument(
+            "--reference",
+            required=True,
+            help="the family to compare with, e.g. orca_radius_0.1..0.6",
+        )
+        p.add_argument("--no-transfer", action="store_true", help="statistics only (no training)")
+
+    def run(self, args, config, execution, out, argv):
+        if not args.reference:
+            raise InputError("the following arguments are required: --reference")
+        return fidelity_report(
+            args.scenario,
+            args.reference,
+            config,
+            config.methods[0],
+            not args.no_transfer,
+            execution.cache,
+            execution.workers,
+            execution.memory_budget,
+        )
+
+    def markdown(self, report):
+        return fidelity_markdown(report)
+
+    def figure(self, report, path):
+        fidelity_figure(report, path)
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+register(Fidelity())

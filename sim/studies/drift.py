@@ -1,4 +1,4 @@
-"""``python -m sim.drift``: a knob drifting within one stream, learnt without task boundaries.
+"""``python -m sim.study drift``: a knob drifting within one stream, learnt without task boundaries.
 
 ``--scenario crowd_noise_0.1..0.6`` gives the family, the drift (from the first value to the
 last, linearly over ``--scenes`` scenes, each simulated at its own value) and the probe bins (a
@@ -21,23 +21,20 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch
 from tqdm import tqdm
 
 from c2inet.data import Windows
 from c2inet.errors import InputError
-from c2inet.files import write_atomic
 from c2inet.options import check_range
 from c2inet.stream import ShiftDetector, StreamLearner
-from sim.cli import parse, parser
-from sim.curriculum import knob_grid, make_tasks, scene_windows
 from sim.domains import domain_seed
 from sim.experiment import ExperimentConfig
+from sim.experiment.curriculum import knob_grid, make_tasks, scene_windows
 from sim.generators import child_seed
-from sim.outputs import write_report
-from sim.run import add_learning_options, learning_config, method_names
 from sim.scenario import DomainSpec
-from viz.cli import bounded_float, bounded_int, guarded
+from sim.studies.base import Study, register
+from viz.cli import bounded_float, bounded_int
+from viz.figures import drift_figure
 
 BOUNDARIES = ("detect", "none", "chunks")
 DEFAULT_METHODS = "finetune,ewc,derpp,c2inet-online"
@@ -215,72 +212,32 @@ def drift_markdown(report: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def drift_figure(report: dict[str, Any], path: Path) -> None:
-    """Left: mean probe ADE over the stream per method, boundaries marked. Right: each
-    method's error-over-time matrix, as each probe's excess over its best (forgetting shows as
-    colour returning down a column)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    methods = report["methods"]
-    fig, axes = plt.subplots(1, 1 + len(methods), figsize=(5 + 3.6 * len(methods), 3.8))
-    values = report["chunk_values"]
-    ax = axes[0]
-    for name, m in methods.items():
-        line = ax.plot(values, np.mean(m["ade"], axis=1), "-o", ms=3, label=name)[0]
-        for c in m["given"][1:]:
-            ax.axvline(values[c], color=line.get_color(), alpha=0.25, lw=1)
-    ax.set(xlabel=f"{report['knob']} at the stream's position", ylabel="mean probe ADE (m)")
-    ax.set_title(f"boundaries: {report['boundaries']}", fontsize=9)
-    ax.legend(fontsize=7)
-    relative = {
-        name: np.asarray(m["ade"]) / np.min(m["ade"], axis=0) - 1 for name, m in methods.items()
-    }
-    top = max(100 * r.max() for r in relative.values())
-    for ax, name in zip(axes[1:], methods, strict=True):
-        image = ax.imshow(100 * relative[name], aspect="auto", cmap="magma_r", vmin=0, vmax=top)
-        ax.set_xticks(range(len(report["probes"])), [f"{v:g}" for v in report["probes"]])
-        ax.set_yticks(range(len(values)), [f"{v:.2f}" for v in values], fontsize=6)
-        ax.set(xlabel="probe", ylabel="after the chunk at")
-        ax.set_title(name, fontsize=9)
-    fig.colorbar(image, ax=axes[-1], label="ADE above the probe's best (%)")
-    fig.suptitle(f"drift of {report['family']}", fontsize=10)
-    fig.tight_layout()
-    write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
-    plt.close(fig)
-
-
-def write_drift(report: dict[str, Any], out: Path) -> None:
-    """``drift.json``, ``drift.md`` and ``drift.png`` in ``out``."""
-    write_report(out, "drift", report, drift_markdown, drift_figure)
-
-
-@guarded
-def main(argv: list[str] | None = None) -> int:
+class Drift(Study):
+    name = "drift"
+    title = __doc__.splitlines()[0].split(": ", 1)[1].rstrip(".")
     examples = (
-        "  python -m sim.drift --scenario crowd_noise_0.1..0.6 --scenes 600 --chunks 12\n"
-        "  python -m sim.drift --scenario crowd_radius_0.1..0.6 --boundaries none --quick"
+        "--scenario crowd_noise_0.1..0.6 --scenes 600 --chunks 12",
+        "--scenario crowd_radius_0.1..0.6 --boundaries none --quick",
     )
-    p = parser("sim.drift", __doc__.splitlines()[0], examples)
-    p.add_argument("--scenes", type=bounded_int(2, 100_000), default=600, help="stream length")
-    p.add_argument("--chunks", type=bounded_int(1, 100_000), default=12, help="chunks of it")
-    p.add_argument("--boundaries", choices=BOUNDARIES, default="detect")
-    p.add_argument("--threshold", type=bounded_float(1e-6, 10), default=0.15)
-    p.add_argument("--out", type=Path, default=Path("drift"), help="folder of the report")
-    add_learning_options(p, DEFAULT_METHODS)
-    args = parse(p, sys.argv[1:] if argv is None else argv)
-    if args is None:
-        return 0
-    torch.set_num_threads(args.threads)
-    config = learning_config(args, method_names(args.methods))
-    options = DriftOptions(args.scenes, args.chunks, args.boundaries, args.threshold)
-    report = run_drift(config, options, args.cache, args.workers, args.memory_budget)
-    write_drift(report, args.out)
-    print(drift_markdown(report))
-    return 0
+    methods = DEFAULT_METHODS
+
+    def add_options(self, p):
+        p.add_argument("--scenes", type=bounded_int(2, 100_000), default=600, help="stream length")
+        p.add_argument("--chunks", type=bounded_int(1, 100_000), default=12, help="chunks of it")
+        p.add_argument("--boundaries", choices=BOUNDARIES, default="detect")
+        p.add_argument("--threshold", type=bounded_float(1e-6, 10), default=0.15)
+
+    def run(self, args, config, execution, out, argv):
+        options = DriftOptions(args.scenes, args.chunks, args.boundaries, args.threshold)
+        return run_drift(
+            config, options, execution.cache, execution.workers, execution.memory_budget
+        )
+
+    def markdown(self, report):
+        return drift_markdown(report)
+
+    def figure(self, report, path):
+        drift_figure(report, path)
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+register(Drift())

@@ -1,4 +1,4 @@
-"""``python -m sim.active``: an active curriculum simulates where the model fails.
+"""``python -m sim.study active``: an active curriculum simulates where the model fails.
 
 ``--scenario crowd_noise_0.1..0.6:0.05`` is a dense grid of one family's knob. With a budget of
 ``--rounds`` rounds of ``--scenes`` new training scenes each, every round a strategy picks the
@@ -25,24 +25,21 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import torch
 from tqdm import tqdm
 
 from c2inet.data import Windows
 from c2inet.errors import InputError
-from c2inet.files import write_atomic
 from c2inet.options import check_range
 from c2inet.stream import StreamLearner
 from c2inet.trainer import Task, evaluate
-from sim.cli import parse, parser
-from sim.curriculum import knob_grid, make_tasks, scene_windows
 from sim.domains import domain_seed
 from sim.experiment import ExperimentConfig
+from sim.experiment.curriculum import knob_grid, make_tasks, scene_windows
 from sim.generators import child_seed
-from sim.outputs import write_report
-from sim.run import add_learning_options, learning_config
 from sim.scenario import DomainSpec
-from viz.cli import bounded_int, guarded
+from sim.studies.base import Study, register
+from viz.cli import bounded_int
+from viz.figures import active_figure
 
 STRATEGIES = ("error", "relative", "spread", "fixed", "random")
 
@@ -226,62 +223,35 @@ def active_markdown(report: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def active_figure(report: dict[str, Any], path: Path) -> None:
-    """Mean and worst held-out ADE against scenes simulated, and the final error per grid value,
-    one line per strategy."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 3, figsize=(15, 3.8))
-    for name, s in report["strategies"].items():
-        for ax, key in zip(axes[:2], ("mean", "worst"), strict=True):
-            ax.errorbar(
-                report["scenes"], s[key], s[f"{key}_std"], fmt="-o", ms=3, capsize=2, label=name
-            )
-        axes[2].plot(report["grid"], s["final_errors"], "-o", ms=3, label=name)
-    axes[0].set(xlabel="scenes simulated", ylabel="mean held-out ADE (m)")
-    axes[1].set(xlabel="scenes simulated", ylabel="worst held-out ADE (m)")
-    axes[2].set(xlabel=report["knob"], ylabel="final held-out ADE (m)")
-    axes[0].legend(fontsize=7)
-    fig.suptitle(f"active curriculum on {report['family']} ({report['method']})", fontsize=10)
-    fig.tight_layout()
-    write_atomic(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
-    plt.close(fig)
-
-
-def write_active(report: dict[str, Any], out: Path) -> None:
-    """``active.json``, ``active.md`` and ``active.png`` in ``out``."""
-    write_report(out, "active", report, active_markdown, active_figure)
-
-
-@guarded
-def main(argv: list[str] | None = None) -> int:
+class Active(Study):
+    name = "active"
+    title = __doc__.splitlines()[0].split(": ", 1)[1].rstrip(".")
     examples = (
-        "  python -m sim.active --scenario crowd_noise_0.1..0.6:0.05 --rounds 8 --scenes 40\n"
-        "  python -m sim.active --scenario crowd_radius_0.1..0.6 --strategies error,fixed --quick"
+        "--scenario crowd_noise_0.1..0.6:0.05 --rounds 8 --scenes 40",
+        "--scenario crowd_radius_0.1..0.6 --strategies error,fixed --quick",
     )
-    p = parser("sim.active", __doc__.splitlines()[0], examples)
-    p.add_argument("--rounds", type=bounded_int(1, 1000), default=8, help="rounds of new scenes")
-    p.add_argument("--scenes", type=bounded_int(1, 100_000), default=40, help="scenes a round")
-    p.add_argument("--strategies", default=",".join(STRATEGIES), help="comma-separated")
-    p.add_argument("--random-orders", type=bounded_int(1, 100), default=3)
-    p.add_argument("--method", default="finetune", help="the learner (default finetune)")
-    p.add_argument("--out", type=Path, default=Path("active"), help="folder of the report")
-    add_learning_options(p)
-    args = parse(p, sys.argv[1:] if argv is None else argv)
-    if args is None:
-        return 0
-    torch.set_num_threads(args.threads)
-    config = learning_config(args, (args.method,))
-    strategies = tuple(s.strip() for s in args.strategies.split(",") if s.strip())
-    options = ActiveOptions(args.rounds, args.scenes, strategies, args.random_orders)
-    report = run_active(config, options, args.cache, args.workers, args.memory_budget)
-    write_active(report, args.out)
-    print(active_markdown(report))
-    return 0
+    one_method = True
+
+    def add_options(self, p):
+        p.add_argument(
+            "--rounds", type=bounded_int(1, 1000), default=8, help="rounds of new scenes"
+        )
+        p.add_argument("--scenes", type=bounded_int(1, 100_000), default=40, help="scenes a round")
+        p.add_argument("--strategies", default=",".join(STRATEGIES), help="comma-separated")
+        p.add_argument("--random-orders", type=bounded_int(1, 100), default=3)
+
+    def run(self, args, config, execution, out, argv):
+        strategies = tuple(s.strip() for s in args.strategies.split(",") if s.strip())
+        options = ActiveOptions(args.rounds, args.scenes, strategies, args.random_orders)
+        return run_active(
+            config, options, execution.cache, execution.workers, execution.memory_budget
+        )
+
+    def markdown(self, report):
+        return active_markdown(report)
+
+    def figure(self, report, path):
+        active_figure(report, path)
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+register(Active())

@@ -31,13 +31,13 @@ from c2inet.errors import InputError
 from c2inet.files import writable_folder, write_text_atomic
 from c2inet.report import markdown_report, matrix_csv, summarise, summarise_diagnostics
 from sim.data import SPLITS
-from sim.generate import domain_summary
 from viz import figures
 from viz.recording import merge_recordings
 
 if TYPE_CHECKING:
-    from sim.curriculum import Curriculum
-    from sim.experiment import Execution, ExperimentConfig, JobResult
+    from sim.experiment.config import Execution, ExperimentConfig
+    from sim.experiment.curriculum import Curriculum
+    from sim.experiment.jobs import JobResult
 
 RUNS = Path("runs")
 TRUTH_PART = "truth.partial.rrd"  # the run's own recording until it is merged with the jobs'
@@ -333,7 +333,7 @@ def write_outputs(
         "train": asdict(config.train_config()),
         "settings": config.settings,
         "versions": versions(),
-        "domains": [domain_summary(d) for d in curriculum.domains],
+        "domains": [d.summary() for d in curriculum.domains],
         "windows": {t.name: _window_counts(t) for t in curriculum.inputs.tasks},
     }
     card = json.dumps(run_card, indent=1)

@@ -1,0 +1,208 @@
+"""An experiment's configuration: what it computes (:class:`ExperimentConfig`), how it runs
+(:class:`Execution`), its jobs, and the ``--set SCOPE.KEY=VALUE`` overrides.
+
+Equal configurations give equal ``metrics.json``; every field is checked on construction, bad
+input raising ``InputError``.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from c2inet.backbones import BACKBONES
+from c2inet.errors import InputError, did_you_mean
+from c2inet.methods.base import get_method
+from c2inet.model import ModelConfig
+from c2inet.options import build
+from c2inet.trainer import TrainConfig
+from sim.experiment.backends import BACKENDS, check_ray_address
+from sim.scenario import DomainSpec, parse_scenario
+from viz.live import viewer_url
+from viz.loggers import LOGGERS
+
+DEFAULT_METHODS = ("c2inet-online", "finetune", "cv")
+# options that have a flag of their own: a --set of them would be silently overridden
+FLAG_OPTIONS = (("train", "epochs"), ("train", "k"), ("train", "seed"), ("model", "backbone"))
+
+
+@dataclass(frozen=True)
+class ExperimentConfig:
+    """What an experiment computes: equal configurations give equal ``metrics.json``.
+
+    ``settings`` are option overrides by scope (``data``, ``model``, ``train`` or a method's
+    name), as ``--set SCOPE.KEY=VALUE`` gives them. ``epochs`` and ``k`` default to 20 (2 and 5 when
+    ``quick``). Everything is checked on construction: bad input raises ``InputError``.
+    """
+
+    scenario: str
+    methods: tuple[str, ...] = DEFAULT_METHODS
+    seeds: int = 1
+    seed: int = 0
+    epochs: int | None = None
+    k: int | None = None
+    backbone: str = "stgat"
+    quick: bool = False
+    settings: dict[str, dict[str, Any]] = field(default_factory=dict)
+    scenarios_dir: tuple[Path, ...] = ()
+    record: bool = True
+
+    def __post_init__(self):
+        fill = object.__setattr__  # the resolved defaults belong to the frozen configuration
+        fill(self, "methods", tuple(self.methods))
+        fill(self, "scenarios_dir", tuple(Path(p) for p in self.scenarios_dir))
+        fill(self, "epochs", self.epochs if self.epochs is not None else (2 if self.quick else 20))
+        fill(self, "k", self.k if self.k is not None else (5 if self.quick else 20))
+        self.specs()  # a bad scenario or data override fails here
+        if not self.methods:
+            raise InputError("methods: no method named")
+        if len(set(self.methods)) != len(self.methods):
+            raise InputError(f"methods: a method is named twice in {','.join(self.methods)}")
+        for name in self.methods:
+            try:
+                get_method(name)
+            except KeyError as error:
+                raise InputError(f"methods: {error.args[0]}") from None
+        if self.backbone not in BACKBONES:
+            raise InputError(f"backbone {self.backbone!r}: expected one of {sorted(BACKBONES)}")
+        for scope in self.settings:
+            if scope not in ("data", "model", "train", *self.methods):
+                raise InputError(
+                    f"--set: scope {scope!r} is not data, model, train or a chosen method"
+                )
+        for scope, key in FLAG_OPTIONS:
+            if key in self.settings.get(scope, {}):
+                raise InputError(f"--set {scope}.{key}: use --{key} (its flag) instead")
+        if self.seed < 0:
+            raise InputError(f"seed must be at least 0, got {self.seed}")
+        for name, value, low in (
+            ("seeds", self.seeds, 1),
+            ("epochs", self.epochs, 0),
+            ("k", self.k, 1),
+        ):
+            if value < low:
+                raise InputError(f"{name} must be at least {low}, got {value}")
+        try:
+            self.model_config()
+            self.train_config()
+            for name in self.methods:
+                self.method(name)
+        except ValueError as error:
+            raise InputError(f"--set {error}") from None
+
+    def specs(self) -> list[DomainSpec]:
+        """The curriculum's domains, with the ``data`` settings applied to their knobs."""
+        return parse_scenario(self.scenario, list(self.scenarios_dir), self.settings.get("data"))
+
+    def model_config(self) -> ModelConfig:
+        return build(
+            ModelConfig, {"backbone": self.backbone, **self.settings.get("model", {})}, "model"
+        )
+
+    def train_config(self, seed_index: int = 0) -> TrainConfig:
+        """The trainer's options of the job with seed ``seed_index`` (its own seed)."""
+        train = {**self.settings.get("train", {}), "epochs": self.epochs, "k": self.k}
+        return build(TrainConfig, {**train, "seed": self.seed + seed_index}, "train")
+
+    def method(self, name: str):
+        return get_method(name)(self.model_config(), self.settings.get(name))
+
+    def jobs(self) -> list[Job]:
+        return [Job(m, s) for m in self.methods for s in range(self.seeds)]
+
+    def to_json(self) -> dict[str, Any]:
+        return {**asdict(self), "scenarios_dir": [str(p) for p in self.scenarios_dir]}
+
+
+@dataclass(frozen=True)
+class Execution:
+    """How an experiment runs; none of it changes a number of ``metrics.json``.
+
+    ``jobs``: local processes (``local``) or the CPUs of the local cluster Ray starts (``ray``,
+    unless ``ray_address`` joins an existing one). ``workers``: processes that generate episodes.
+    ``rerun``: also stream to a live viewer (``spawn`` or ``connect[=URL]``).
+    """
+
+    backend: str = "local"
+    jobs: int = 1
+    ray_address: str | None = None
+    threads: int = 1
+    workers: int = os.cpu_count() or 1
+    cache: Path = Path(".cache/domains")
+    rerun: str | None = None
+    loggers: tuple[str, ...] = ()  # csv, tensorboard: per job, beside its checkpoints
+    memory_budget: float | None = None  # GB one domain's generation may take (None: no limit)
+
+    def __post_init__(self):
+        object.__setattr__(self, "loggers", tuple(self.loggers))
+        object.__setattr__(self, "cache", Path(self.cache))
+        for name in self.loggers:
+            if name not in LOGGERS:
+                hint = did_you_mean(name, LOGGERS)
+                raise InputError(f"--logger {name!r}: unknown{hint} (known: {', '.join(LOGGERS)})")
+        if self.backend not in BACKENDS:
+            raise InputError(f"--backend {self.backend!r}: expected one of {', '.join(BACKENDS)}")
+        if self.rerun is not None and self.rerun != "spawn":
+            if self.rerun != "connect" and not self.rerun.startswith("connect="):
+                raise InputError(
+                    f"--rerun {self.rerun[:80]!r}: expected spawn, connect or connect=URL"
+                )
+            viewer_url(self.rerun)
+        if self.cache.exists() and not self.cache.is_dir():
+            raise InputError(f"--cache {self.cache}: not a folder")
+        if self.ray_address is not None and self.backend != "ray":
+            raise InputError("--ray-address: only with --backend ray")
+        if self.ray_address is not None:
+            check_ray_address(self.ray_address)  # before the domains and the folder
+
+    def job_options(self, resume: bool) -> dict[str, Any]:
+        """The keyword options of :func:`run_job` that come from how the run executes."""
+        live, loggers = self.live_target(), self.loggers
+        return {"threads": self.threads, "resume": resume, "live": live, "loggers": loggers}
+
+    def live_target(self) -> str | None:
+        """Where jobs stream to: the spawned viewer's default address, or the given one."""
+        return None if self.rerun is None else "connect" if self.rerun == "spawn" else self.rerun
+
+
+@dataclass(frozen=True)
+class Job:
+    """One (method, seed) of an experiment; the curriculum is the experiment's."""
+
+    method: str
+    seed_index: int
+
+    def folder(self, out: Path) -> Path:
+        return out / "jobs" / self.method / f"seed_{self.seed_index}"
+
+
+def parse_settings(items: list[str]) -> dict[str, dict[str, Any]]:
+    """``SCOPE.KEY=VALUE`` strings -> {scope: {key: value}}, values read as bool, int, float or
+    text (the option's type is checked when the configuration is built)."""
+    settings: dict[str, dict[str, Any]] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        scope, dot, name = key.partition(".")
+        if not sep or not dot or not name:
+            raise InputError(
+                f"--set {item!r}: expected SCOPE.KEY=VALUE, e.g. c2inet-online.pruning=false"
+            )
+        if name in settings.get(scope, {}):
+            raise InputError(f"--set {key}: given twice; give each option once")
+        settings.setdefault(scope, {})[name] = parse_value(text)
+    return settings
+
+
+def parse_value(text: str) -> bool | int | float | str:
+    """An option value from the command line: true/false, an integer, a number, or text."""
+    flag = {"true": True, "false": False}.get(text.strip().lower())
+    if flag is not None:
+        return flag
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text

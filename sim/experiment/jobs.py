@@ -1,0 +1,214 @@
+"""One job = (curriculum, method, seed): its inputs, its training and its result.
+
+A job is a function of the configuration with its own child seed, its own folder (checkpoints,
+result, recording) and its own result, so a local loop, local processes and Ray run the same
+jobs (``sim.experiment.backends``) and give the same numbers.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import zipfile
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from c2inet.errors import InputError
+from c2inet.files import writable_folder, write_atomic, write_text_atomic
+from c2inet.trainer import ContinualTrainer, Result
+from sim.experiment.config import Execution, ExperimentConfig, Job
+from sim.experiment.curriculum import (
+    SAMPLE_SCENES,
+    Curriculum,
+    JobInputs,
+    make_showcases,
+    make_tasks,
+)
+from viz.colours import method_colour
+from viz.loggers import make_loggers
+from viz.observer import RecordingObserver, log_truth
+from viz.recording import RunRecorder, default_blueprint
+
+APP_ID = "c2i-testbed"
+
+
+def prepare(config: ExperimentConfig, execution: Execution) -> Curriculum:
+    """Generate (or read from the content-hashed cache) every domain of the curriculum."""
+    specs = config.specs()
+    writable_folder(execution.cache, "--cache")
+    tasks, domains = make_tasks(
+        specs,
+        config.seed,
+        config.quick,
+        execution.cache,
+        execution.workers,
+        execution.memory_budget,
+    )
+    drawn = config.record or execution.rerun is not None
+    showcases, rollouts = make_showcases(specs, tasks, config.seed) if drawn else ([], {})
+    one_family = len({s.family.name for s in specs}) == 1
+    labels = [s.label if one_family else s.name for s in specs]
+    return Curriculum(specs, domains, JobInputs(tasks, showcases), rollouts, labels)
+
+
+@dataclass
+class JobResult:
+    """What one job measured (``c2inet.trainer.Result``) and the predictions it drew."""
+
+    job: Job
+    result: Result
+    predictions: dict[str, np.ndarray] = field(default_factory=dict)  # task -> (K, A, T, 2)
+
+    def save(self, folder: Path) -> None:
+        """``predictions.npz``, then ``result.json``, whose presence marks the job finished."""
+
+        def write_predictions(tmp: Path) -> None:
+            with tmp.open("wb") as file:  # a file object: np.savez would append .npz to a name
+                np.savez(file, **self.predictions)
+
+        if self.predictions:
+            write_atomic(folder / "predictions.npz", write_predictions)
+        r = self.result
+        data = {
+            "tasks": r.tasks,
+            "matrices": {m: v.tolist() for m, v in r.matrices.items()},
+            "summaries": r.summaries,
+            "history": r.history,
+            "diagnostics": r.diagnostics,
+        }
+        write_text_atomic(folder / "result.json", json.dumps(data) + "\n")
+
+    @staticmethod
+    def load(job: Job, folder: Path) -> JobResult:
+        """Read a finished job back; a damaged or foreign file is one :class:`InputError`
+        naming it and the way out."""
+        path = folder / "result.json"
+        try:
+            data = json.loads(path.read_text())
+            matrices = {m: np.array(v, dtype=float) for m, v in data.pop("matrices").items()}
+            result = Result(matrices=matrices, **data)
+            predictions = {}
+            path = folder / "predictions.npz"
+            if path.exists():
+                with np.load(path, allow_pickle=False) as saved:
+                    predictions = dict(saved)
+        except (
+            OSError,
+            ValueError,
+            KeyError,
+            TypeError,
+            AttributeError,
+            zipfile.BadZipFile,
+        ) as error:
+            raise InputError(
+                f"--resume: {path} is damaged or not this project's ({type(error).__name__}); "
+                f"delete {folder} to run that job again, or use --overwrite"
+            ) from None
+        return JobResult(job, result, predictions)
+
+
+def recording_id(config: ExperimentConfig) -> str:
+    """Shared by the run's and its jobs' recordings, so the viewer shows them as one."""
+    return f"{config.scenario}-seed{config.seed}"
+
+
+def run_job(
+    job: Job,
+    config: ExperimentConfig,
+    inputs: JobInputs,
+    out: Path,
+    threads: int = 1,
+    resume: bool = False,
+    live: str | None = None,
+    loggers: tuple[str, ...] = (),
+    on_event: Callable[[str, dict], None] | None = None,
+) -> JobResult:
+    """Train one method with one seed through the curriculum, in ``job.folder(out)``.
+
+    With ``resume``, a finished job is read back and an unfinished one continues after its last
+    task checkpoint. The job's recording (the first seed's, when recorded) is written under a
+    temporary name and renamed when the job is complete.
+    """
+    torch.set_num_threads(threads)
+    folder = job.folder(out)
+    if resume and (folder / "result.json").exists():
+        return JobResult.load(job, folder)
+    observers = [] if on_event is None else [on_event]
+    names = [t.name for t in inputs.tasks]
+    logs = make_loggers(loggers, folder, config.epochs, names)
+    observers += logs
+    recorder = drawing = None
+    if (config.record or live) and job.seed_index == 0:  # the first seed is drawn
+        partial = folder / "recording.partial.rrd" if config.record else None
+        recorder = RunRecorder.create(APP_ID, recording_id(config), partial, live, None)
+        colour = method_colour(config.methods.index(job.method))
+        drawing = RecordingObserver(
+            recorder,
+            job.method,
+            inputs.showcases,
+            config.k,
+            config.epochs,
+            colour,
+            seed=config.seed,
+        )
+        observers.append(drawing)
+    trainer = ContinualTrainer(
+        config.method(job.method),
+        inputs.tasks,
+        config.train_config(job.seed_index),
+        checkpoint_dir=folder / "checkpoints",
+        observers=observers,
+        progress=None if on_event is None else _epoch_bar,
+    )
+    result = JobResult(job, trainer.run(resume=resume))
+    for log in logs:
+        log.close()
+    if recorder is not None:
+        recorder.close()
+        if partial is not None:
+            os.replace(partial, folder / "recording.rrd")
+        result.predictions = drawing.final_predictions
+    result.save(folder)
+    return result
+
+
+def _epoch_bar(iterable, **options):
+    return tqdm(iterable, file=sys.stderr, unit="epoch", **options)
+
+
+def follow(bar: tqdm) -> Callable[[str, dict], None]:
+    """A ``progress`` for ``run_jobs``: the tasks bar moves with finished tasks (its estimate of
+    the time left is the whole run's) and shows the newest epoch's training loss."""
+
+    def update(event: str, data: dict) -> None:
+        if event == "task_end":
+            bar.update(1)
+        elif event == "job_end":
+            bar.update(data["tasks"])
+        elif event == "epoch_end" and "nll" in data:
+            bar.set_postfix_str(f"loss {data['nll']:.3f}", refresh=False)
+
+    return update
+
+
+def record_truth(config: ExperimentConfig, curriculum: Curriculum, path: Path, live: str | None):
+    """The run's own recording: the blueprint, the domains and the ground truth."""
+    tasks = [t.name for t in curriculum.inputs.tasks]
+    recorder = RunRecorder.create(
+        APP_ID,
+        recording_id(config),
+        path,
+        live,
+        default_blueprint(tasks, list(config.methods), SAMPLE_SCENES),
+    )
+    recorder.log_legend(list(config.methods))
+    for domain in curriculum.domains:
+        recorder.log_domain(domain.name, domain.knobs, domain.stats)
+    log_truth(recorder, curriculum.inputs.showcases, curriculum.rollouts)
+    return recorder

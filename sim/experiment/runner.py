@@ -1,0 +1,77 @@
+"""The experiment as a function: :func:`run_experiment` generates the curriculum, runs every
+job on the chosen backend and writes every output (``sim.experiment.outputs``).
+
+From a notebook::
+
+    from sim.experiment import ExperimentConfig, run_experiment
+    metrics = run_experiment(ExperimentConfig("crowd_noise_0.1..0.3", quick=True))
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import torch
+from tqdm import tqdm
+
+from sim.experiment.backends import run_jobs
+from sim.experiment.config import Execution, ExperimentConfig
+from sim.experiment.estimate import describe, run_seconds
+from sim.experiment.jobs import follow, prepare, record_truth, run_job
+from sim.experiment.outputs import TRUTH_PART, claim, output_folder, write_outputs
+from viz.live import check_reachable, viewer_url
+
+
+def run_experiment(
+    config: ExperimentConfig,
+    out: Path | None = None,
+    execution: Execution | None = None,
+    resume: bool = False,
+    overwrite: bool = False,
+    argv: list[str] | None = None,
+) -> dict[str, Any]:
+    """Generate the curriculum, run every job on the chosen backend, write every output.
+
+    ``out``: the run's folder (default: a fresh ``runs/<scenario>/<timestamp>``, see
+    ``sim.experiment.outputs.output_folder``); a folder holding anything else is refused unless
+    ``overwrite``. With ``resume``, finished jobs are read back and unfinished ones continue from
+    their last task; the configuration must equal the folder's. Returns ``metrics.json``.
+    """
+    execution = execution or Execution()
+    if execution.rerun not in (None, "spawn"):
+        check_reachable(viewer_url(execution.rerun))
+    out = output_folder(config.scenario, out, resume)
+    claim(out, config, execution, resume, overwrite)
+    torch.set_num_threads(execution.threads)
+    started = time.perf_counter()
+    curriculum = prepare(config, execution)
+    truth = None
+    if config.record or execution.rerun:
+        path = out / TRUTH_PART if config.record else None
+        truth = record_truth(config, curriculum, path, execution.rerun)
+    jobs = config.jobs()
+    tasks = len(curriculum.inputs.tasks)
+    if not resume:
+        estimate = run_seconds(config, curriculum.inputs.tasks, execution.jobs)
+        print(
+            f"{len(jobs)} jobs x {tasks} tasks, {execution.jobs} at a time: about "
+            f"{describe(estimate)} of training and evaluation (timed on this machine)",
+            file=sys.stderr,
+        )
+    with tqdm(total=len(jobs) * tasks, desc="tasks", unit="task", file=sys.stderr) as bar:
+        results = run_jobs(
+            run_job,
+            jobs,
+            shared=(config, curriculum.inputs, out),
+            backend=execution.backend,
+            processes=execution.jobs,
+            ray_address=execution.ray_address,
+            options=execution.job_options(resume),
+            progress=follow(bar),
+            tasks_of=lambda _job: tasks,
+        )
+    wall = time.perf_counter() - started
+    return write_outputs(out, config, execution, curriculum, results, truth, wall, argv or sys.argv)

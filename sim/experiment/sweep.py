@@ -1,0 +1,178 @@
+"""A sweep: the cross product of scenarios, methods, seeds and option values, as one set of jobs.
+
+Every (scenario, setting) is one experiment in its own folder ``<out>/<scenario>/<setting>``
+(``sim.run``'s outputs, recording included); all their jobs run together on one backend, and
+the sweep is resumable like a run. ``results.parquet`` holds every number in tidy form
+(scenario, method, seed, setting, after_task, on_task, metric, value) and ``report.md`` the
+final scores, mean and std over seeds. ``--set KEY=V1,V2`` sweeps an option over its values.
+"""
+
+from __future__ import annotations
+
+import itertools
+import sys
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+from tqdm import tqdm
+
+from c2inet.errors import InputError
+from c2inet.files import write_atomic, write_text_atomic
+from sim.experiment.backends import run_jobs
+from sim.experiment.config import Execution, ExperimentConfig, Job, parse_settings, parse_value
+from sim.experiment.jobs import JobResult, follow, prepare, record_truth, run_job
+from sim.experiment.outputs import TRUTH_PART, claim, run_root, write_outputs
+
+COLUMNS = ("scenario", "method", "seed", "setting", "after_task", "on_task", "metric", "value")
+
+
+@dataclass(frozen=True)
+class SweepConfig:
+    """The experiments of a sweep: every scenario with every combination of option values,
+    each otherwise configured as ``base`` (whose scenario and settings are replaced)."""
+
+    base: ExperimentConfig
+    scenarios: tuple[str, ...]
+    grid: dict[str, tuple[Any, ...]] = field(default_factory=dict)  # "SCOPE.KEY" -> values
+    variants: tuple[tuple[str, dict[str, dict[str, Any]]], ...] = ()  # named settings instead
+
+    def settings(self) -> list[tuple[str, dict[str, dict[str, Any]]]]:
+        """The named variants, or every combination of the grid's values: (label, settings by
+        scope)."""
+        if self.variants:
+            return list(self.variants)
+        keys = sorted(self.grid)
+        out = []
+        for values in itertools.product(*(self.grid[k] for k in keys)):
+            items = [f"{k}={v}" for k, v in zip(keys, values, strict=True)]
+            out.append((",".join(items) or "default", parse_settings(items)))
+        return out
+
+    def experiments(self) -> list[tuple[str, ExperimentConfig]]:
+        """(setting label, configuration) of every experiment, scenario by scenario."""
+        return [
+            (label, replace(self.base, scenario=scenario, settings=settings))
+            for scenario in self.scenarios
+            for label, settings in self.settings()
+        ]
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "base": self.base.to_json(),
+            "scenarios": list(self.scenarios),
+            "grid": {k: list(v) for k, v in self.grid.items()},
+            "variants": {label: settings for label, settings in self.variants},
+        }
+
+
+def parse_grid(items: list[str]) -> dict[str, tuple[Any, ...]]:
+    """``SCOPE.KEY=V1,V2`` strings -> {"SCOPE.KEY": (V1, V2)} (values typed as in ``--set``)."""
+    grid = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or not text:
+            raise InputError(f"--set {item!r}: expected SCOPE.KEY=V1,V2,...")
+        parse_settings([f"{key}=0"])  # checks the key's form
+        if key in grid:
+            raise InputError(f"--set {key}: given twice; list its values once, V1,V2,...")
+        values = tuple(parse_value(v) for v in text.split(","))
+        if len(set(map(repr, values))) < len(values):
+            raise InputError(f"--set {key}: a value is listed twice in {text!r}")
+        grid[key] = values
+    return grid
+
+
+def _sweep_job(item: tuple[int, Job], experiments: list[tuple], **options) -> JobResult:
+    """Run job ``item[1]`` of experiment ``item[0]`` (its configuration, inputs and folder)."""
+    index, job = item
+    return run_job(job, *experiments[index], **options)
+
+
+def tidy_rows(label: str, config: ExperimentConfig, results: list[JobResult]) -> dict[str, list]:
+    """Every matrix cell of every job, one row each."""
+    rows: dict[str, list] = {c: [] for c in COLUMNS}
+    for done in results:
+        tasks = done.result.tasks
+        for metric, matrix in done.result.matrices.items():
+            for (i, after), (j, on) in itertools.product(enumerate(tasks), enumerate(tasks)):
+                cell = (config.scenario, done.job.method, config.seed + done.job.seed_index)
+                for column, value in zip(
+                    COLUMNS, (*cell, label, after, on, metric, float(matrix[i, j])), strict=True
+                ):
+                    rows[column].append(value)
+    return rows
+
+
+def combined_report(entries: list[tuple[str, ExperimentConfig, dict]]) -> str:
+    """Final scores of every (scenario, setting, method), mean ± std over seeds."""
+    lines = [
+        "# Sweep",
+        "",
+        "After the last task: ADE averaged over all tasks (best of K, joint, and K = 1), mean ± "
+        "std over seeds; forgetting is the final ADE minus the best earlier one (m).",
+        "",
+        "| scenario | setting | method | seeds | avg ADE best-of-K | avg ADE K=1 | forgetting |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for label, config, metrics in entries:
+        for name, m in metrics["methods"].items():
+            best = f"{m['avg_seen_ade'][-1]:.3f} ± {m['avg_seen_ade_std'][-1]:.3f}"
+            single = f"{m['avg_seen_ade_k1'][-1]:.3f} ± {m['avg_seen_ade_k1_std'][-1]:.3f}"
+            forgetting = f"{m['forgetting_final_ade']:+.3f}"
+            lines.append(
+                f"| {config.scenario} | {label} | {name} | {m['seeds']} | {best} | {single} | "
+                f"{forgetting} |"
+            )
+    return "\n".join(lines) + "\n"
+
+
+def run_sweep(
+    sweep: SweepConfig,
+    out: Path,
+    execution: Execution | None = None,
+    resume: bool = False,
+    overwrite: bool = False,
+    argv: list[str] | None = None,
+) -> list[tuple[str, ExperimentConfig, dict]]:
+    """Run every experiment of ``sweep`` under ``out``; returns (setting, config, metrics)."""
+    execution, argv = execution or Execution(), argv or []
+    claim(out, sweep, execution, resume, overwrite)
+    started = time.perf_counter()
+    planned = []
+    for label, config in sweep.experiments():
+        folder = out / run_root(config.scenario).name / run_root(label).name
+        claim(folder, config, execution, resume)
+        planned.append((label, config, folder, prepare(config, execution)))
+    items = [(i, job) for i, (_, config, _, _) in enumerate(planned) for job in config.jobs()]
+    shared = [(config, curriculum.inputs, folder) for _, config, folder, curriculum in planned]
+    tasks = [len(curriculum.inputs.tasks) for *_, curriculum in planned]
+    with tqdm(total=sum(tasks[i] for i, _ in items), desc="tasks", file=sys.stderr) as bar:
+        results = run_jobs(
+            _sweep_job,
+            items,
+            (shared,),
+            execution.backend,
+            execution.jobs,
+            execution.ray_address,
+            execution.job_options(resume),
+            follow(bar),
+            lambda item: tasks[item[0]],
+        )
+    wall = time.perf_counter() - started
+    entries, rows = [], {c: [] for c in COLUMNS}
+    for i, (label, config, folder, curriculum) in enumerate(planned):
+        mine = [r for (index, _), r in zip(items, results, strict=True) if index == i]
+        path = folder / TRUTH_PART
+        truth = record_truth(config, curriculum, path, None) if config.record else None
+        metrics = write_outputs(folder, config, execution, curriculum, mine, truth, wall, argv)
+        entries.append((label, config, metrics))
+        for column, values in tidy_rows(label, config, mine).items():
+            rows[column] += values
+    table = pa.table(rows)
+    write_atomic(out / "results.parquet", lambda tmp: pq.write_table(table, tmp))
+    write_text_atomic(out / "report.md", combined_report(entries))
+    return entries

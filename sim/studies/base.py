@@ -1,0 +1,96 @@
+"""The study skeleton and registry: a study declares its options, runs, and says its table and
+figure; the command (``python -m sim.study NAME``) does the rest the same way for every study.
+
+A study is an instance of a :class:`Study` subclass registered with :func:`register` in a module
+of ``sim.studies``; :func:`discover` imports them all. What the skeleton does for each: the
+shared options (``sim.cli``), the experiment's configuration and execution, one output policy
+(the folder ``studies/NAME`` unless ``--out``; a folder holding anything else is refused, and
+``--overwrite`` removes only a folder of ours), and ``NAME.json``, ``NAME.md`` and ``NAME.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+from pathlib import Path
+from typing import Any
+
+from c2inet.errors import InputError, did_you_mean
+from sim.experiment import Execution, ExperimentConfig
+from sim.experiment.outputs import write_report
+
+STUDIES: dict[str, Study] = {}
+
+
+class Study:
+    """One study. ``jobs``: it runs its training as the engine's jobs (a sweep), so it takes
+    ``--jobs``, ``--backend``, ``--resume`` and ``--no-record``; otherwise it trains in this
+    process. ``scenarios``: ``--scenario`` may be repeated. ``one_method``: ``--methods`` names
+    exactly one learner."""
+
+    name: str = ""
+    title: str = ""  # one line, the command's description
+    examples: tuple[str, ...] = ()  # argument lists after ``python -m sim.study NAME``
+    methods: str = "finetune"  # the default of --methods
+    jobs: bool = False
+    scenarios: bool = False
+    scenario_required: bool = True
+    one_method: bool = False
+    report: str = ""  # the files' name: NAME.json, NAME.md, NAME.png (default: the study's name)
+
+    def scenario_of(self, args: argparse.Namespace) -> str:
+        """The scenario of the study's configuration (the first, where it takes several)."""
+        return args.scenario[0] if self.scenarios else args.scenario
+
+    def add_options(self, p: argparse.ArgumentParser) -> None:
+        """The study's own options (the shared ones are added by the command)."""
+
+    def run(
+        self,
+        args: argparse.Namespace,
+        config: ExperimentConfig,
+        execution: Execution,
+        out: Path,
+        argv: list[str],
+    ) -> dict[str, Any]:
+        """Compute the study into ``out``; returns its report (``NAME.json``)."""
+        raise NotImplementedError
+
+    def markdown(self, report: dict[str, Any]) -> str:
+        """``NAME.md``: the study's table."""
+        raise NotImplementedError
+
+    def figure(self, report: dict[str, Any], path: Path) -> None:
+        """``NAME.png``: the study's figure."""
+        raise NotImplementedError
+
+    def write(self, report: dict[str, Any], out: Path) -> str:
+        """``NAME.json``, ``NAME.md`` and ``NAME.png`` of ``report`` in ``out``; returns NAME."""
+        name = self.report or self.name
+        write_report(out, name, report, self.markdown, self.figure)
+        return name
+
+
+def register(study: Study) -> Study:
+    """Add ``study`` to the registry under its name; a name given twice is an error."""
+    if not study.name or study.name in STUDIES:
+        raise ValueError(f"study name {study.name!r} is empty or registered twice")
+    STUDIES[study.name] = study
+    return study
+
+
+def discover() -> dict[str, Study]:
+    """Every registered study, after importing every module of ``sim.studies``."""
+    package = importlib.import_module("sim.studies")
+    for module in pkgutil.iter_modules(package.__path__):
+        importlib.import_module(f"sim.studies.{module.name}")
+    return dict(sorted(STUDIES.items()))
+
+
+def get_study(name: str) -> Study:
+    studies = discover()
+    if name not in studies:
+        known = ", ".join(studies)
+        raise InputError(f"study {name!r}: unknown{did_you_mean(name, studies)} (known: {known})")
+    return studies[name]

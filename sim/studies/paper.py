@@ -1,0 +1,199 @@
+"""The paper's studies: ``table4`` (each C2INet part switched off in turn), ``fig9`` (the
+queue's capacity gamma) and ``fig10`` (task order).
+
+Each is a preset of the sweep (``sim.experiment.sweep``): named variants of options over a few
+curricula, every job run together on one backend, resumable. Its folder holds the sweep's
+outputs (a run per curriculum and variant, ``results.parquet``) plus ``study.md``,
+``study.json`` and ``study.png``. ``--scenario`` replaces the presets' curricula (small runs).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+from sim.experiment import ExperimentConfig
+from sim.experiment.sweep import SweepConfig, run_sweep
+from sim.studies.base import Study, register
+from viz.figures import study_figure
+
+ETH_UCY = "eth_ucy_univ,eth,zara1,zara2,hotel"  # the paper's order U-E-Z1-Z2-H
+C2INET = "c2inet-online"
+OFF = {
+    "full": {},
+    "no weight optimisation": {C2INET: {"weight_opt": False}},
+    "no divergence": {C2INET: {"divergence": False}},
+    "no weight optimisation, divergence or KL of Z": {
+        C2INET: {"weight_opt": False, "divergence": False},
+        "model": {"beta_z": 0.0},
+    },
+}
+
+
+@dataclass(frozen=True)
+class Preset:
+    """Variants (label -> settings by scope) of one method over curricula; ``by`` says what the
+    figure compares: the variants (``variant``) or the curricula (``order``)."""
+
+    title: str
+    scenarios: tuple[str, ...]
+    variants: dict[str, dict[str, dict[str, Any]]]
+    by: str = "variant"
+    paper: str = ""
+
+
+PRESETS = {
+    "table4": Preset(
+        "Table 4: C2INet-online with each part switched off",
+        (ETH_UCY, "crowd_radius_0.1..0.6"),
+        OFF,
+        paper="ETH-UCY (U-E-Z1-Z2-H): every removal raises the error; removing everything most "
+        "(up to 21.6 %), the divergence term next (5 to 17 %), weight optimisation least (3.7 %)",
+    ),
+    "fig9": Preset(
+        "Fig 9: the queue's capacity gamma",
+        (ETH_UCY,),
+        {f"gamma={g}": {C2INET: {"capacity": g}} for g in (15, 30, 45, 60)},
+        paper="gamma = 45 best, 15 worst: too small and too large a queue both hurt",
+    ),
+    "fig10": Preset(
+        "Fig 10: task order",
+        (
+            ETH_UCY,
+            "eth_ucy_hotel,univ,eth,zara1,zara2",  # H-U-E-Z1-Z2, the paper's best
+            "eth_ucy_univ,eth,zara1,hotel,zara2",  # U-E-Z1-H-Z2, its second worst
+            "crowd_radius_0.1..0.6",
+            "crowd_radius_0.6,0.5,0.4,0.3,0.2,0.1",  # reversed
+            "crowd_radius_0.3,0.6,0.1,0.5,0.2,0.4",  # shuffled (fixed)
+        ),
+        {"default": {}},
+        by="order",
+        paper="the order changes the final average by about 7.6 % (best H-U-E-Z1-Z2); the noisy "
+        "hotel task is best learnt early",
+    ),
+}
+
+
+def study_sweep(study: Preset, base: ExperimentConfig, scenarios: tuple[str, ...] | None):
+    return SweepConfig(
+        replace(base, methods=(C2INET,)),
+        scenarios or study.scenarios,
+        variants=tuple(study.variants.items()),
+    )
+
+
+def summarise_study(study: Preset, entries: list[tuple[str, ExperimentConfig, dict]]) -> dict:
+    """Per curriculum and variant: average ADE/FDE over seen tasks after each task, and the
+    final ones, mean and std over seeds."""
+    rows = []
+    for label, config, metrics in entries:
+        m = metrics["methods"][C2INET]
+        rows.append(
+            {
+                "scenario": config.scenario,
+                "variant": label,
+                "labels": metrics["labels"],
+                "seeds": m["seeds"],
+                **{
+                    key: m[key]
+                    for key in (
+                        "avg_seen_ade",
+                        "avg_seen_ade_std",
+                        "avg_seen_fde",
+                        "avg_seen_fde_std",
+                        "forgetting_final_ade",
+                    )
+                },
+            }
+        )
+    return {"study": study.title, "paper": study.paper, "rows": rows}
+
+
+def order_table(summary: dict) -> list[str]:
+    """For order studies: each family's orders side by side, final averages and the change
+    against the family's first order."""
+    lines = [
+        "| family | order | final ADE/FDE | ± std | change of ADE |",
+        "|---|---|---|---|---|",
+    ]
+    reference: dict[str, float] = {}
+    for r in summary["rows"]:
+        family, order = r["scenario"].rsplit("_", 1)
+        ade, fde = r["avg_seen_ade"][-1], r["avg_seen_fde"][-1]
+        base = reference.setdefault(family, ade)
+        lines.append(
+            f"| {family} | {order} | {ade:.3f}/{fde:.3f} | {r['avg_seen_ade_std'][-1]:.3f} | "
+            f"{100 * (ade / base - 1):+.1f} % |"
+        )
+    return [*lines, ""]
+
+
+def study_markdown(summary: dict) -> str:
+    lines = [f"# {summary['study']}", "", f"The paper: {summary['paper']}.", ""]
+    if summary.get("by") == "order":
+        lines += order_table(summary)
+    lines += [
+        "Cells: ADE/FDE in metres averaged over the tasks seen so far after each task, mean over "
+        "seeds (± std of the final average); in brackets the change of the final ADE against the "
+        "first row of its curriculum.",
+        "",
+    ]
+    scenarios = dict.fromkeys(r["scenario"] for r in summary["rows"])
+    for scenario in scenarios:
+        rows = [r for r in summary["rows"] if r["scenario"] == scenario]
+        labels = rows[0]["labels"]
+        lines += [f"## {scenario}", ""]
+        lines.append("| variant | " + " | ".join(labels) + " | forgetting |")
+        lines.append("|---|" + "---|" * (len(labels) + 1))
+        reference = rows[0]["avg_seen_ade"][-1]
+        for r in rows:
+            cells = [
+                f"{a:.3f}/{f:.3f}"
+                for a, f in zip(r["avg_seen_ade"], r["avg_seen_fde"], strict=True)
+            ]
+            change = r["avg_seen_ade"][-1] - reference
+            cells[-1] += f" ± {r['avg_seen_ade_std'][-1]:.3f} ({change:+.3f})"
+            lines.append(
+                f"| {r['variant']} | "
+                + " | ".join(cells)
+                + f" | {r['forgetting_final_ade']:+.3f} |"
+            )
+        lines.append("")
+    return "\n".join(lines)
+
+
+class PaperStudy(Study):
+    """One of the paper's studies: its preset's sweep of C2INet-online, summarised per variant
+    or per task order."""
+
+    methods = C2INET
+    jobs = True
+    scenarios = True
+    scenario_required = False
+    report = "study"
+
+    def __init__(self, name: str, preset: Preset):
+        self.name, self.preset, self.title = name, preset, preset.title
+        self.examples = (
+            "--seeds 3 --jobs 2",
+            f"--quick --scenario crowd_radius_0.1,0.2 --out /tmp/{name}",
+        )
+
+    def scenario_of(self, args) -> str:
+        return (args.scenario or self.preset.scenarios)[0]
+
+    def run(self, args, config, execution, out, argv):
+        scenarios = tuple(args.scenario) if args.scenario else None
+        sweep = study_sweep(self.preset, config, scenarios)
+        entries = run_sweep(sweep, out, execution, args.resume, args.overwrite, argv)
+        return {**summarise_study(self.preset, entries), "by": self.preset.by}
+
+    def markdown(self, report):
+        return study_markdown(report)
+
+    def figure(self, report, path):
+        study_figure(report, path)
+
+
+for _name, _preset in PRESETS.items():
+    register(PaperStudy(_name, _preset))
