@@ -240,18 +240,15 @@ class Active(Study):
         p.add_argument("--strategies", default=",".join(STRATEGIES), help="comma-separated")
         p.add_argument("--random-orders", type=bounded_int(1, 100), default=3)
 
+    markdown = staticmethod(active_markdown)
+    figure = staticmethod(active_figure)
+
     def run(self, args, config, execution, out, argv):
         strategies = tuple(s.strip() for s in args.strategies.split(",") if s.strip())
         options = ActiveOptions(args.rounds, args.scenes, strategies, args.random_orders)
         return run_active(
             config, options, execution.cache, execution.workers, execution.memory_budget
         )
-
-    def markdown(self, report):
-        return active_markdown(report)
-
-    def figure(self, report, path):
-        active_figure(report, path)
 
 
 register(Active())

@@ -227,17 +227,14 @@ class Drift(Study):
         p.add_argument("--boundaries", choices=BOUNDARIES, default="detect")
         p.add_argument("--threshold", type=bounded_float(1e-6, 10), default=0.15)
 
+    markdown = staticmethod(drift_markdown)
+    figure = staticmethod(drift_figure)
+
     def run(self, args, config, execution, out, argv):
         options = DriftOptions(args.scenes, args.chunks, args.boundaries, args.threshold)
         return run_drift(
             config, options, execution.cache, execution.workers, execution.memory_budget
         )
-
-    def markdown(self, report):
-        return drift_markdown(report)
-
-    def figure(self, report, path):
-        drift_figure(report, path)
 
 
 register(Drift())

@@ -255,6 +255,9 @@ class Fidelity(Study):
         )
         p.add_argument("--no-transfer", action="store_true", help="statistics only (no training)")
 
+    markdown = staticmethod(fidelity_markdown)
+    figure = staticmethod(fidelity_figure)
+
     def run(self, args, config, execution, out, argv):
         if not args.reference:
             raise InputError("the following arguments are required: --reference")
@@ -268,12 +271,6 @@ class Fidelity(Study):
             execution.workers,
             execution.memory_budget,
         )
-
-    def markdown(self, report):
-        return fidelity_markdown(report)
-
-    def figure(self, report, path):
-        fidelity_figure(report, path)
 
 
 register(Fidelity())

@@ -182,17 +182,14 @@ class PaperStudy(Study):
     def scenario_of(self, args) -> str:
         return (args.scenario or self.preset.scenarios)[0]
 
+    markdown = staticmethod(study_markdown)
+    figure = staticmethod(study_figure)
+
     def run(self, args, config, execution, out, argv):
         scenarios = tuple(args.scenario) if args.scenario else None
         sweep = study_sweep(self.preset, config, scenarios)
         entries = run_sweep(sweep, out, execution, args.resume, args.overwrite, argv)
         return {**summarise_study(self.preset, entries), "by": self.preset.by}
-
-    def markdown(self, report):
-        return study_markdown(report)
-
-    def figure(self, report, path):
-        study_figure(report, path)
 
 
 for _name, _preset in PRESETS.items():

@@ -198,17 +198,14 @@ class Shift(Study):
     jobs = True
     scenarios = True
 
+    markdown = staticmethod(shift_markdown)
+    figure = staticmethod(shift_figure)
+
     def run(self, args, config, execution, out, argv):
         config = replace(config, record=False)
         return run_shift(
             list(args.scenario), config, out, execution, args.resume, args.overwrite, argv
         )
-
-    def markdown(self, report):
-        return shift_markdown(report)
-
-    def figure(self, report, path):
-        shift_figure(report, path)
 
 
 register(Shift())
