@@ -219,18 +219,21 @@ def method_names(text: str) -> tuple[str, ...]:
 
 
 def execution_of(args: argparse.Namespace) -> Execution:
-    """How the command's experiment runs, from :func:`add_experiment_options`' options."""
-    return Execution(
-        backend=getattr(args, "backend", "local"),
-        jobs=getattr(args, "jobs", 1),
-        ray_address=getattr(args, "ray_address", None),
-        threads=args.threads,
-        workers=args.workers,
-        memory_budget=args.memory_budget,
-        cache=args.cache,
-        rerun=getattr(args, "rerun", None),
-        loggers=tuple(n.strip() for n in getattr(args, "logger", "").split(",") if n.strip()),
+    """How the command's experiment runs, from :func:`add_experiment_options`' options (the
+    job options a command lacks keep ``Execution``'s defaults)."""
+    names = (
+        "backend",
+        "jobs",
+        "ray_address",
+        "threads",
+        "workers",
+        "memory_budget",
+        "cache",
+        "rerun",
     )
+    options = {name: getattr(args, name) for name in names if hasattr(args, name)}
+    loggers = getattr(args, "logger", "")
+    return Execution(**options, loggers=tuple(n.strip() for n in loggers.split(",") if n.strip()))
 
 
 def command_name(module: str) -> str:

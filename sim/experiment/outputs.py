@@ -44,7 +44,7 @@ TRUTH_PART = "truth.partial.rrd"  # the run's own recording until it is merged w
 MARKER = ".c2i-run"  # written first into every run folder: the proof that the folder is ours
 LOCK = ".c2i-run.lock"  # held (an OS file lock) by the process that runs or resumes the folder
 _LOCKS: dict[Path, int] = {}  # the folders this process holds, and the lock files' descriptors
-STUDIES = ("study", "shift", "drift", "active", "fidelity")
+REPORTS = ("study", "shift", "drift", "active", "fidelity")  # the studies' NAME.json/.md/.png
 RUN_FILES = {
     MARKER,
     LOCK,
@@ -57,7 +57,7 @@ RUN_FILES = {
     "recording.partial.rrd",
     TRUTH_PART,
     "summary.json",
-    *(f"{name}.{ext}" for name in STUDIES for ext in ("json", "md", "png")),
+    *(f"{name}.{ext}" for name in REPORTS for ext in ("json", "md", "png")),
 }
 RUN_FOLDERS = {"jobs", "matrices", "figures", "logs", "tensorboard", "cache"}
 TEMPORARY = re.compile(r"^\.[^/]+\.[A-Za-z0-9_]{8}$")  # write_atomic's .NAME.XXXXXXXX

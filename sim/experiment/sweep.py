@@ -33,7 +33,8 @@ COLUMNS = ("scenario", "method", "seed", "setting", "after_task", "on_task", "me
 @dataclass(frozen=True)
 class SweepConfig:
     """The experiments of a sweep: every scenario with every combination of option values,
-    each otherwise configured as ``base`` (whose scenario and settings are replaced)."""
+    each otherwise configured as ``base`` (its scenario replaced; a variant's settings laid
+    over the base's, so a study's ``--set`` reaches every variant)."""
 
     base: ExperimentConfig
     scenarios: tuple[str, ...]
@@ -55,7 +56,7 @@ class SweepConfig:
     def experiments(self) -> list[tuple[str, ExperimentConfig]]:
         """(setting label, configuration) of every experiment, scenario by scenario."""
         return [
-            (label, replace(self.base, scenario=scenario, settings=settings))
+            (label, replace(self.base, scenario=scenario, settings=layered(self.base, settings)))
             for scenario in self.scenarios
             for label, settings in self.settings()
         ]
@@ -67,6 +68,12 @@ class SweepConfig:
             "grid": {k: list(v) for k, v in self.grid.items()},
             "variants": {label: settings for label, settings in self.variants},
         }
+
+
+def layered(base: ExperimentConfig, settings: dict[str, dict[str, Any]]) -> dict:
+    """``base``'s settings with ``settings`` laid over them, scope by scope."""
+    scopes = {**base.settings, **settings}
+    return {scope: {**base.settings.get(scope, {}), **settings.get(scope, {})} for scope in scopes}
 
 
 def parse_grid(items: list[str]) -> dict[str, tuple[Any, ...]]:

@@ -22,23 +22,16 @@ import numpy as np
 from c2inet.data import OBS_LEN, PRED_LEN
 from c2inet.errors import InputError
 from sim.data import SPLITS, Domain
+from sim.families import Splits
 from sim.generators.base import GENERATORS, Generator
 
 STATISTICS = ("mean_speed", "min_separation", "heading_change", "density")
+SPLITS_CHECKED = Splits(train=1, val=1, test=1)  # scenes of the checker's small domains
 ALLOWANCE = 64e6  # bytes of interpreter and library overhead beyond a generator's own estimate
 
 
 class GeneratorCheckError(AssertionError):
     """A generator broke its contract; the message says which part and how."""
-
-
-@dataclasses.dataclass(frozen=True)
-class CheckSplits:
-    """Scenes per split of the checker's small domains."""
-
-    train: int = 1
-    val: int = 1
-    test: int = 1
 
 
 def _fail(cls: type, what: str) -> None:
@@ -80,7 +73,7 @@ def _generate(cls, knobs, seed: int) -> tuple[Domain, int]:
     tracemalloc.start()
     try:
         domain = cls().generate(
-            "check", "check", knobs, CheckSplits(), np.random.SeedSequence(seed)
+            "check", "check", knobs, SPLITS_CHECKED, np.random.SeedSequence(seed)
         )
         peak = tracemalloc.get_traced_memory()[1]
     finally:
@@ -133,6 +126,6 @@ def check_generator(
         _fail(cls, "the same seed gave another domain")
     if cls.seeded and _same(first, _generate(cls, knobs, 1)[0]):
         _fail(cls, "another seed gave the same domain")
-    estimate = cls.memory_bytes(knobs, CheckSplits())
+    estimate = cls.memory_bytes(knobs, SPLITS_CHECKED)
     if peak > estimate + ALLOWANCE:
         _fail(cls, f"allocated {peak / 1e6:.0f} MB, its memory estimate says {estimate / 1e6:.0f}")

@@ -225,12 +225,14 @@ def active_markdown(report: dict[str, Any]) -> str:
 
 class Active(Study):
     name = "active"
-    title = __doc__.splitlines()[0].split(": ", 1)[1].rstrip(".")
     examples = (
         "--scenario crowd_noise_0.1..0.6:0.05 --rounds 8 --scenes 40",
         "--scenario crowd_radius_0.1..0.6 --strategies error,fixed --quick",
     )
     one_method = True
+
+    markdown = staticmethod(active_markdown)
+    figure = staticmethod(active_figure)
 
     def add_options(self, p):
         p.add_argument(
@@ -239,9 +241,6 @@ class Active(Study):
         p.add_argument("--scenes", type=bounded_int(1, 100_000), default=40, help="scenes a round")
         p.add_argument("--strategies", default=",".join(STRATEGIES), help="comma-separated")
         p.add_argument("--random-orders", type=bounded_int(1, 100), default=3)
-
-    markdown = staticmethod(active_markdown)
-    figure = staticmethod(active_figure)
 
     def run(self, args, config, execution, out, argv):
         strategies = tuple(s.strip() for s in args.strategies.split(",") if s.strip())

@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import pkgutil
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +39,14 @@ class Study:
     scenario_required: bool = True
     one_method: bool = False
     report: str = ""  # the files' name: NAME.json, NAME.md, NAME.png (default: the study's name)
+
+    def __init_subclass__(cls, **kwargs):
+        """Without a ``title``, the first line of the study module's docstring after its
+        command (``python -m sim.study NAME``: what it does)."""
+        super().__init_subclass__(**kwargs)
+        doc = sys.modules[cls.__module__].__doc__ or ""
+        if "title" not in cls.__dict__ and ": " in doc.split("\n", 1)[0]:
+            cls.title = doc.split("\n", 1)[0].split(": ", 1)[1].rstrip(".")
 
     def scenario_of(self, args: argparse.Namespace) -> str:
         """The scenario of the study's configuration (the first, where it takes several)."""

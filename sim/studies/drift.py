@@ -214,21 +214,20 @@ def drift_markdown(report: dict[str, Any]) -> str:
 
 class Drift(Study):
     name = "drift"
-    title = __doc__.splitlines()[0].split(": ", 1)[1].rstrip(".")
     examples = (
         "--scenario crowd_noise_0.1..0.6 --scenes 600 --chunks 12",
         "--scenario crowd_radius_0.1..0.6 --boundaries none --quick",
     )
     methods = DEFAULT_METHODS
 
+    markdown = staticmethod(drift_markdown)
+    figure = staticmethod(drift_figure)
+
     def add_options(self, p):
         p.add_argument("--scenes", type=bounded_int(2, 100_000), default=600, help="stream length")
         p.add_argument("--chunks", type=bounded_int(1, 100_000), default=12, help="chunks of it")
         p.add_argument("--boundaries", choices=BOUNDARIES, default="detect")
         p.add_argument("--threshold", type=bounded_float(1e-6, 10), default=0.15)
-
-    markdown = staticmethod(drift_markdown)
-    figure = staticmethod(drift_figure)
 
     def run(self, args, config, execution, out, argv):
         options = DriftOptions(args.scenes, args.chunks, args.boundaries, args.threshold)

@@ -240,12 +240,14 @@ def _number(value: float | None) -> str:
 
 class Fidelity(Study):
     name = "fidelity"
-    title = __doc__.splitlines()[0].split(": ", 1)[1].rstrip(".")
     examples = (
         "--scenario crowd_radius_0.1..0.6 --reference orca_radius_0.1..0.6",
         "--scenario crowd_radius_0.3 --reference orca_radius_0.3 --no-transfer",
     )
     one_method = True
+
+    markdown = staticmethod(fidelity_markdown)
+    figure = staticmethod(fidelity_figure)
 
     def add_options(self, p):
         p.add_argument(
@@ -254,9 +256,6 @@ class Fidelity(Study):
             help="the family to compare with, e.g. orca_radius_0.1..0.6",
         )
         p.add_argument("--no-transfer", action="store_true", help="statistics only (no training)")
-
-    markdown = staticmethod(fidelity_markdown)
-    figure = staticmethod(fidelity_figure)
 
     def run(self, args, config, execution, out, argv):
         if not args.reference:

@@ -9,9 +9,10 @@ outputs (a run per curriculum and variant, ``results.parquet``) plus ``study.md`
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
+from c2inet.errors import InputError
 from sim.experiment import ExperimentConfig
 from sim.experiment.sweep import SweepConfig, run_sweep
 from sim.studies.base import Study, register
@@ -75,11 +76,7 @@ PRESETS = {
 
 
 def study_sweep(study: Preset, base: ExperimentConfig, scenarios: tuple[str, ...] | None):
-    return SweepConfig(
-        replace(base, methods=(C2INET,)),
-        scenarios or study.scenarios,
-        variants=tuple(study.variants.items()),
-    )
+    return SweepConfig(base, scenarios or study.scenarios, variants=tuple(study.variants.items()))
 
 
 def summarise_study(study: Preset, entries: list[tuple[str, ExperimentConfig, dict]]) -> dict:
@@ -172,6 +169,9 @@ class PaperStudy(Study):
     scenario_required = False
     report = "study"
 
+    markdown = staticmethod(study_markdown)
+    figure = staticmethod(study_figure)
+
     def __init__(self, name: str, preset: Preset):
         self.name, self.preset, self.title = name, preset, preset.title
         self.examples = (
@@ -182,10 +182,9 @@ class PaperStudy(Study):
     def scenario_of(self, args) -> str:
         return (args.scenario or self.preset.scenarios)[0]
 
-    markdown = staticmethod(study_markdown)
-    figure = staticmethod(study_figure)
-
     def run(self, args, config, execution, out, argv):
+        if config.methods != (C2INET,):
+            raise InputError(f"--methods: the paper's studies are of {C2INET} alone")
         scenarios = tuple(args.scenario) if args.scenario else None
         sweep = study_sweep(self.preset, config, scenarios)
         entries = run_sweep(sweep, out, execution, args.resume, args.overwrite, argv)

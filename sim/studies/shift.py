@@ -189,7 +189,6 @@ def run_shift(
 
 class Shift(Study):
     name = "shift"
-    title = __doc__.splitlines()[0].split(": ", 1)[1].rstrip(".")
     examples = (
         "--scenario crowd_noise_0.1..0.6 --scenario crowd_radius_0.1..0.6 --seeds 3 --jobs 2",
         "--scenario crowd_noise_0.1,0.3,0.6 --quick --out /tmp/shift",

@@ -243,3 +243,12 @@ def test_loggers_write_the_numbers_of_metrics_json(tmp_path):
     events.Reload()
     (point,) = [s for s in events.Scalars("matrix_ade/crowd_noise_0.1") if s.step == 3]
     assert point.value == pytest.approx(metrics["ade"][1][0], rel=1e-6)
+
+
+def test_usage_names_the_command_as_the_user_typed_it(monkeypatch):
+    from sim.cli import parser
+
+    monkeypatch.setattr(sys, "argv", ["/venv/bin/c2i-run"])
+    assert parser("sim.run", "d").format_usage().startswith("usage: c2i-run ")
+    monkeypatch.setattr(sys, "argv", ["/clone/sim/run.py"])
+    assert parser("sim.run", "d").format_usage().startswith("usage: python -m sim.run ")

@@ -6,6 +6,7 @@ import json
 
 import pytest
 
+from sim.experiment.outputs import REPORTS
 from sim.studies.base import STUDIES, Study, discover, register
 from sim.studies.paper import PRESETS
 from sim.study import main, study_parser
@@ -38,6 +39,7 @@ def test_every_study_is_registered_once_with_the_shared_options():
         shared = {"methods", "epochs", "seeds", "set", "cache", "overwrite", "out", "threads"}
         assert shared <= options, name
         assert ({"resume", "jobs", "backend", "no_record"} <= options) == study.jobs, name
+        assert (study.report or name) in REPORTS, f"{name}: --overwrite would not know its files"
     with pytest.raises(ValueError, match="registered twice"):
         register(STUDIES["drift"])
     with pytest.raises(ValueError, match="empty"):

@@ -83,3 +83,15 @@ def test_the_grid_is_a_product_of_typed_values():
         parse_grid(["model.beta_c=0,1,0"])
     with pytest.raises(InputError, match="not data, model, train"):
         SweepConfig(base, ("crowd_noise_0.1",), parse_grid(["ewc.strength=1"])).experiments()
+
+
+def test_a_variant_lays_its_settings_over_the_base_settings():
+    """A study's ``--set`` (the base's settings) reaches every variant; a variant's own value
+    wins where both name an option."""
+    settings = {"model": {"beta_c": 0.5}, "train": {"lr": 0.01}}
+    base = ExperimentConfig("crowd_noise_0.1", methods=("c2inet-online",), settings=settings)
+    variants = (("off", {"model": {"beta_c": 0.0}}), ("full", {}))
+    sweep = SweepConfig(base, ("crowd_noise_0.1",), variants=variants)
+    (_, off), (_, full) = sweep.experiments()
+    assert off.settings == {"model": {"beta_c": 0.0}, "train": {"lr": 0.01}}
+    assert full.settings == settings
