@@ -17,11 +17,6 @@ from typing import Any
 
 import numpy as np
 import torch
-from sklearn.linear_model import LogisticRegression, Ridge
-from sklearn.metrics import adjusted_rand_score, normalized_mutual_info_score, r2_score
-from sklearn.model_selection import StratifiedKFold, cross_val_predict
-from sklearn.pipeline import make_pipeline
-from sklearn.preprocessing import StandardScaler
 
 from c2inet.batch import make_batch
 from c2inet.data import Windows
@@ -67,8 +62,14 @@ def observed_features(windows: Windows) -> np.ndarray:
     return np.nan_to_num(features, nan=-1.0, posinf=-1.0)
 
 
-def _folds(labels: np.ndarray, seed: int) -> StratifiedKFold | None:
+# scikit-learn is imported where a probe runs: it is a third of the project's import time, which
+# every command line pays, bad input and --help included.
+
+
+def _folds(labels: np.ndarray, seed: int):
     """Stratified folds, as many as the rarest class allows (None below 2 classes or 2 each)."""
+    from sklearn.model_selection import StratifiedKFold
+
     classes, counts = np.unique(labels, return_counts=True)
     if len(classes) < 2 or counts.min() < 2:
         return None
@@ -80,6 +81,11 @@ def probe_accuracy(features: np.ndarray, labels: np.ndarray, seed: int = 0) -> f
     folds = _folds(labels, seed)
     if folds is None:
         return None
+    from sklearn.linear_model import LogisticRegression
+    from sklearn.model_selection import cross_val_predict
+    from sklearn.pipeline import make_pipeline
+    from sklearn.preprocessing import StandardScaler
+
     probe = make_pipeline(StandardScaler(), LogisticRegression(max_iter=1000))
     predicted = cross_val_predict(probe, features, labels, cv=folds)
     return float((predicted == labels).mean())
@@ -91,6 +97,12 @@ def knob_r2(features: np.ndarray, values: np.ndarray, seed: int = 0) -> float | 
     folds = _folds(labels, seed)
     if folds is None:
         return None
+    from sklearn.linear_model import Ridge
+    from sklearn.metrics import r2_score
+    from sklearn.model_selection import cross_val_predict
+    from sklearn.pipeline import make_pipeline
+    from sklearn.preprocessing import StandardScaler
+
     model = make_pipeline(StandardScaler(), Ridge(alpha=1.0))
     predicted = cross_val_predict(model, features, values, cv=folds.split(features, labels))
     return float(r2_score(values, predicted))
@@ -189,6 +201,8 @@ def _confounder(model, batches, labels, values, seed) -> dict[str, Any]:
     if model.c_per_scene:
         owner_task = np.repeat(owner_task, counts)
     if tasks > 1:
+        from sklearn.metrics import adjusted_rand_score, normalized_mutual_info_score
+
         out["ari"] = _rounded(adjusted_rand_score(domain, owner_task))
         out["nmi"] = _rounded(normalized_mutual_info_score(domain, owner_task))
     if all(v is not None for v in values):

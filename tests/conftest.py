@@ -1,9 +1,15 @@
 """Every test, and every process a test starts, keeps its configuration and caches out of the
-user's home folder (Rerun's analytics settings, matplotlib's cache; Ray's token: see its test)."""
+user's home folder (Rerun's analytics settings, matplotlib's cache; Ray's token: see its test),
+and trains on one torch thread: with tests in parallel (``make test``), torch's default of one
+thread per core made training several times slower (the project's rule for runs, too)."""
 
 import os
 
 import pytest
+import torch
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")  # the processes tests start
+torch.set_num_threads(1)
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -20,7 +20,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
-from sklearn.cluster import KMeans
 
 from c2inet.errors import InputError
 from c2inet.methods.base import TaskContext
@@ -50,6 +49,8 @@ class C2INetOffline(C2INetOnline):
     def _cluster(self, ctx: TaskContext, centres: np.ndarray | None) -> None:
         """Set the task's components from k-means of its current posteriors (from ``centres``,
         or from k-means++ seeded by the task's generator)."""
+        from sklearn.cluster import KMeans  # here: scikit-learn is slow to import
+
         mean, logvar = self._current_posterior(ctx)
         points = mean.numpy().astype(np.float64)
         k = min(self.options.clusters, len(np.unique(points, axis=0)))

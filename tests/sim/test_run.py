@@ -8,11 +8,20 @@ import sys
 
 import pytest
 
+from sim.run import main
+
 
 def run(*args):
     return subprocess.run(
         [sys.executable, "-m", "sim.run", *args], capture_output=True, text=True, check=False
     )
+
+
+def refused(capsys, *args) -> list[str]:
+    """Run ``sim.run`` in this process on bad input: exit code 2 and stderr's lines (the
+    command's process exit code is tested once, below)."""
+    assert main(list(args)) == 2
+    return capsys.readouterr().err.strip().splitlines()
 
 
 def test_quick_run_writes_every_output(tmp_path):
@@ -167,10 +176,8 @@ def test_seeds_give_mean_and_std(tmp_path):
         (["--scenario", "crowd_noise_0.1", "--seed", "-1"], "seed must be at least 0"),
     ],
 )
-def test_bad_options_give_one_error_line(args, message):
-    result = run(*args)
-    assert result.returncode == 2
-    lines = result.stderr.strip().splitlines()
+def test_bad_options_give_one_error_line(capsys, args, message):
+    lines = refused(capsys, *args)
     assert len(lines) == 1 and lines[0].startswith("error:") and message in lines[0]
 
 
@@ -204,11 +211,16 @@ def test_list_shows_families_methods_and_knobs():
         ([], "required: --scenario"),
     ],
 )
-def test_mistakes_get_a_hint(args, message):
-    result = run(*args)
-    assert result.returncode == 2
-    lines = result.stderr.strip().splitlines()
+def test_mistakes_get_a_hint(capsys, args, message):
+    lines = refused(capsys, *args)
     assert len(lines) == 1 and message in lines[0], lines
+
+
+def test_bad_input_is_exit_code_2_and_one_line_from_the_command():
+    result = run("--scenario", "crowd_nose_0.1")
+    lines = result.stderr.strip().splitlines()
+    assert result.returncode == 2 and len(lines) == 1 and lines[0].startswith("error: ")
+    assert "did you mean 'crowd_noise'?" in lines[0]
 
 
 def test_knob_overrides_reach_the_domains_and_the_run_card(tmp_path):
