@@ -7,7 +7,7 @@ SCENARIO ?= crowd_noise_0.1..0.6
 
 $(VENV)/.installed: pyproject.toml
 	test -x $(PY) || python3 -m venv $(VENV)
-	$(PY) -m pip install --quiet --disable-pip-version-check -e '.[test]'
+	$(PY) -m pip install --quiet --disable-pip-version-check --no-compile -e '.[test]'
 	touch $@
 
 venv: $(VENV)/.installed

@@ -42,11 +42,12 @@ def finish(process: subprocess.Popen) -> subprocess.CompletedProcess:
 
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory):
-    """An uninterrupted quick run: its folder and its metrics.json."""
+    """An uninterrupted quick run: its folder, its metrics.json, and the domain cache it filled
+    (the tests below read it rather than generate the same domains again)."""
     root = tmp_path_factory.mktemp("reference")
     done = finish(start(root / "run", root / "cache", "--epochs", "4"))
     assert done.returncode == 0, done.stderr
-    return root / "run", (root / "run" / "metrics.json").read_bytes()
+    return root / "run", (root / "run" / "metrics.json").read_bytes(), root / "cache"
 
 
 def wait_for(process: subprocess.Popen, path: Path, seconds: float = 120) -> None:
@@ -67,14 +68,15 @@ def wait_for(process: subprocess.Popen, path: Path, seconds: float = 120) -> Non
 )
 def test_killed_runs_resume_to_the_same_metrics(tmp_path, reference, moment):
     out = tmp_path / "run"
-    process = start(out, tmp_path / "cache", "--epochs", "4")
+    cache = tmp_path / "cache" if moment == "config.json" else reference[2]  # killed generating
+    process = start(out, cache, "--epochs", "4")
     wait_for(process, out / moment)
     process.send_signal(signal.SIGKILL)
     assert process.wait() == -signal.SIGKILL
     assert not (out / "metrics.json").exists() and not (out / "recording.rrd").exists()
-    refused = finish(start(out, tmp_path / "cache", "--epochs", "4"))
+    refused = finish(start(out, cache, "--epochs", "4"))
     assert refused.returncode == 2 and "--resume" in refused.stderr  # never mixed into
-    resumed = finish(start(out, tmp_path / "cache", "--epochs", "4", "--resume"))
+    resumed = finish(start(out, cache, "--epochs", "4", "--resume"))
     assert resumed.returncode == 0, resumed.stderr
     assert (out / "metrics.json").read_bytes() == reference[1]
     assert (out / "recording.rrd").stat().st_size > 0
@@ -83,7 +85,7 @@ def test_killed_runs_resume_to_the_same_metrics(tmp_path, reference, moment):
 
 def test_ctrl_c_leaves_one_line_and_a_command_that_resumes(tmp_path, reference):
     out = tmp_path / "run"
-    process = start(out, tmp_path / "cache", "--epochs", "4")
+    process = start(out, reference[2], "--epochs", "4")
     wait_for(process, out / "jobs/c2inet-online/seed_0/checkpoints/task_00.pt")
     process.send_signal(signal.SIGINT)
     stopped = finish(process)
@@ -115,7 +117,7 @@ def test_parallel_jobs_give_the_same_metrics(tmp_path, reference, backend):
         "--backend",
         backend,
         "--cache",
-        str(tmp_path / "cache"),
+        str(reference[2]),
         "--out",
         str(tmp_path / "run"),
     ]
@@ -127,15 +129,15 @@ def test_parallel_jobs_give_the_same_metrics(tmp_path, reference, backend):
 
 
 def test_each_run_gets_a_fresh_folder_and_latest_points_to_it(tmp_path):
-    cache = tmp_path / "cache"
-    first = finish(start(None, cache, "--no-record", cwd=tmp_path))
-    second = finish(start(None, cache, "--no-record", cwd=tmp_path))
+    cache, cv = tmp_path / "cache", ("--methods", "cv", "--no-record")  # folders, not training
+    first = finish(start(None, cache, *cv, cwd=tmp_path))
+    second = finish(start(None, cache, *cv, cwd=tmp_path))
     assert first.returncode == 0 and second.returncode == 0, second.stderr
     root = tmp_path / "runs" / "crowd_noise_0.1..0.3"
     runs = sorted(p for p in root.iterdir() if p.name != "latest")
     assert len(runs) == 2 and all((p / "metrics.json").exists() for p in runs)
     assert (root / "latest").resolve() == runs[-1].resolve()
-    again = finish(start(None, cache, "--no-record", "--resume", cwd=tmp_path))
+    again = finish(start(None, cache, *cv, "--resume", cwd=tmp_path))
     assert again.returncode == 0 and str(runs[-1].relative_to(tmp_path)) in again.stdout
 
 
