@@ -264,3 +264,10 @@ def test_usage_names_the_command_as_the_user_typed_it(monkeypatch):
     assert parser("sim.run", "d").format_usage().startswith("usage: c2i-run ")
     monkeypatch.setattr(sys, "argv", ["/clone/sim/run.py"])
     assert parser("sim.run", "d").format_usage().startswith("usage: python -m sim.run ")
+
+
+def test_a_command_starts_without_scikit_learn():
+    """scikit-learn is imported where a probe or k-means runs: bad input and --help stay quick."""
+    code = "import sys, sim.run, sim.study; assert 'sklearn' not in sys.modules, 'sklearn'"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr

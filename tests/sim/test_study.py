@@ -66,3 +66,9 @@ def test_the_listing_names_every_study(capsys):
     assert main([]) == 2
     out = capsys.readouterr().out
     assert all(name in out for name in discover())
+
+
+def test_the_papers_studies_refuse_another_method(capsys):
+    argv = ["fig9", "--quick", "--scenario", "crowd_radius_0.1,0.2", "--methods", "finetune"]
+    assert main(argv) == 2
+    assert "the paper's studies are of c2inet-online alone" in capsys.readouterr().err
