@@ -143,11 +143,12 @@ def add_experiment_options(
     methods: str = ",".join(DEFAULT_METHODS),
     jobs: bool = True,
     grid: bool = False,
+    record: bool = True,
 ) -> None:
     """The options of every command that trains: what to train, the domain cache, ``--set``,
     ``--overwrite``; with ``jobs`` (the training runs as the engine's jobs) also ``--resume``,
-    the backend, ``--jobs``, recording and loggers. ``methods``: the default of ``--methods``;
-    ``grid``: ``--set`` lists values to sweep."""
+    the backend, ``--jobs``, loggers and, with ``record`` (it writes recordings), ``--no-record``.
+    ``methods``: the default of ``--methods``; ``grid``: ``--set`` lists values to sweep."""
     p.add_argument(
         "--methods", default=methods, help=f"comma-separated, or all (default {methods})"
     )
@@ -186,7 +187,8 @@ def add_experiment_options(
         help="jobs at once: local processes, or the CPUs of the local Ray cluster (default 1)",
     )
     p.add_argument("--ray-address", help="join this Ray cluster instead of starting one")
-    p.add_argument("--no-record", action="store_true", help="do not write recording.rrd")
+    if record:
+        p.add_argument("--no-record", action="store_true", help="do not write recording.rrd")
     p.add_argument(
         "--logger",
         default="",

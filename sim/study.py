@@ -38,7 +38,7 @@ def listing() -> str:
 def study_parser(study: Study):
     examples = "\n".join(f"  python -m sim.study {study.name} {e}" for e in study.examples)
     p = parser(f"sim.study {study.name}", study.title, examples, scenarios=study.scenarios)
-    add_experiment_options(p, study.methods, jobs=study.jobs)
+    add_experiment_options(p, study.methods, jobs=study.jobs, record=study.records)
     p.add_argument(
         "--out", type=Path, help=f"the study's folder (default {STUDIES_ROOT / study.name})"
     )

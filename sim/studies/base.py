@@ -26,7 +26,8 @@ STUDIES: dict[str, Study] = {}
 
 class Study:
     """One study. ``jobs``: it runs its training as the engine's jobs (a sweep), so it takes
-    ``--jobs``, ``--backend``, ``--resume`` and ``--no-record``; otherwise it trains in this
+    ``--jobs``, ``--backend`` and ``--resume`` (and ``--no-record`` if it ``records``);
+    otherwise it trains in this
     process. ``scenarios``: ``--scenario`` may be repeated. ``one_method``: ``--methods`` names
     exactly one learner."""
 
@@ -38,6 +39,7 @@ class Study:
     scenarios: bool = False
     scenario_required: bool = True
     one_method: bool = False
+    records: bool = True  # with ``jobs``: its runs write recordings (else no --no-record)
     report: str = ""  # the files' name: NAME.json, NAME.md, NAME.png (default: the study's name)
 
     def __init_subclass__(cls, **kwargs):

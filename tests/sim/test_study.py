@@ -38,7 +38,8 @@ def test_every_study_is_registered_once_with_the_shared_options():
         options = {a.dest for a in study_parser(study)._actions}
         shared = {"methods", "epochs", "seeds", "set", "cache", "overwrite", "out", "threads"}
         assert shared <= options, name
-        assert ({"resume", "jobs", "backend", "no_record"} <= options) == study.jobs, name
+        assert ({"resume", "jobs", "backend"} <= options) == study.jobs, name
+        assert ("no_record" in options) == (study.jobs and study.records), name
         assert (study.report or name) in REPORTS, f"{name}: --overwrite would not know its files"
     with pytest.raises(ValueError, match="registered twice"):
         register(STUDIES["drift"])
