@@ -75,7 +75,7 @@ def run_pymunk(knobs: CrowdKnobs, scenes: int) -> tuple[float, int]:
 def whole_domain(name: str) -> tuple[float, float, int]:
     """(wall of the domain as a run makes it, wall of its simulation alone, agent-seconds)."""
     (spec,) = parse_scenario(name)
-    knobs = CrowdKnobs(**spec.knobs())
+    knobs = CrowdKnobs(**spec.knobs)
     splits = spec.family.splits
     start = time.perf_counter()
     with tempfile.TemporaryDirectory() as folder:

@@ -5,18 +5,23 @@ The names a user needs are here::
     from c2inet import ContinualTrainer, ModelConfig, Task, TrainConfig, Windows, get_method
 """
 
-from c2inet.data import Windows
-from c2inet.methods.base import get_method
-from c2inet.model import ModelConfig
-from c2inet.report import summarise
-from c2inet.trainer import ContinualTrainer, Task, TrainConfig
+from importlib import import_module
 
-__all__ = [
-    "ContinualTrainer",
-    "ModelConfig",
-    "Task",
-    "TrainConfig",
-    "Windows",
-    "get_method",
-    "summarise",
-]
+_HOMES = {
+    "ContinualTrainer": "c2inet.trainer",
+    "ModelConfig": "c2inet.model",
+    "Task": "c2inet.trainer",
+    "TrainConfig": "c2inet.trainer",
+    "Windows": "c2inet.data",
+    "get_method": "c2inet.methods.base",
+    "summarise": "c2inet.report",
+}
+__all__ = sorted(_HOMES)
+
+
+def __getattr__(name: str):
+    """The names above, imported on first use: a module that needs only ``c2inet.errors`` (the
+    simulators' commands, their worker processes) does not pay torch's second of import."""
+    if name in _HOMES:
+        return getattr(import_module(_HOMES[name]), name)
+    raise AttributeError(f"module 'c2inet' has no attribute {name!r}")

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import torch
+
+if TYPE_CHECKING:
+    import torch
 
 OBS_LEN = 8
 PRED_LEN = 12
@@ -70,6 +73,8 @@ class Windows:
 
     def state_dict(self) -> dict[str, torch.Tensor | int]:
         """Tensors and plain values only, for checkpoints read with ``weights_only=True``."""
+        import torch  # here only: the simulators build windows without loading torch
+
         return {
             "positions": torch.from_numpy(self.positions.copy()),
             "scene_start": torch.from_numpy(self.scene_start.copy()),

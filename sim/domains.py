@@ -32,7 +32,7 @@ def domain_seed(root_seed: int, spec: DomainSpec) -> np.random.SeedSequence:
 def domain_hash(spec: DomainSpec, root_seed: int, splits: Splits | None = None) -> str:
     """Content hash of everything that determines a domain's data."""
     generator = get_generator(spec.family.generator)
-    knobs = spec.knobs()
+    knobs = spec.knobs
     content = {
         "generator": generator.name,
         "generator_version": generator.version,
@@ -68,7 +68,7 @@ def build_domain(
         except InputError as error:  # damaged or truncated: never used, made again
             print(f"warning: {error}; generating it again", file=sys.stderr)
     generator = get_generator(spec.family.generator)()
-    needed = generator.memory_bytes(spec.knobs(), splits) / 1e9
+    needed = generator.memory_bytes(spec.knobs, splits) / 1e9
     if memory_budget is not None and needed > memory_budget:
         raise InputError(
             f"domain {spec.name}: generating it needs about {needed:.3g} GB, more than the "
@@ -76,7 +76,7 @@ def build_domain(
             "scenes)"
         )
     domain = generator.generate(
-        spec.name, spec.family.name, spec.knobs(), splits, domain_seed(root_seed, spec), workers
+        spec.name, spec.family.name, spec.knobs, splits, domain_seed(root_seed, spec), workers
     )
     domain.hash = digest
     if cached:
@@ -87,4 +87,4 @@ def build_domain(
 def rollout_scene(spec: DomainSpec, root_seed: int, frames: int):
     """A longer episode of the domain for playback (its own child seed), or None."""
     generator = get_generator(spec.family.generator)()
-    return generator.rollout(spec.knobs(), child_seed(domain_seed(root_seed, spec), 99), frames)
+    return generator.rollout(spec.knobs, child_seed(domain_seed(root_seed, spec), 99), frames)

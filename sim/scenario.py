@@ -8,7 +8,7 @@ families (real data) take names instead of numbers, or a range where the names a
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from decimal import Decimal, InvalidOperation
 from pathlib import Path
 from typing import Any
@@ -27,19 +27,20 @@ _NAME = re.compile(r"^[a-z0-9][a-z0-9_-]*$")
 
 @dataclass(frozen=True)
 class DomainSpec:
-    """One task of a curriculum: a family and the value its knob takes."""
+    """One task of a curriculum: a family, the value its knob takes and the generator knobs
+    that result (the family defaults with the value applied), resolved and validated once."""
 
     family: Family
     value: float | str
     label: str  # the value as written in the domain name ("0.1", "univ")
+    knobs: dict[str, Any] = field(init=False, compare=False, repr=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, "knobs", self.family.knobs_for(self.value))
 
     @property
     def name(self) -> str:
         return f"{self.family.name}_{self.label}"
-
-    def knobs(self) -> dict:
-        """The generator knobs of this domain: the family defaults with the value applied."""
-        return self.family.knobs_for(self.value)
 
 
 def _decimals(text: str) -> int:
@@ -171,7 +172,6 @@ def parse_scenario(
                     f"scenario part {quote(part)}: value {quote(spec.label, 20)} is longer than "
                     f"{MAX_LABEL} characters"
                 )
-            spec.knobs()  # validates the knob value against the generator's range
             if not _NAME.match(spec.label.replace(".", "")):
                 raise InputError(f"scenario part {quote(part)}: bad value {spec.label!r}")
         curriculum.extend(specs)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import asdict, dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -55,7 +56,8 @@ class ExperimentConfig:
         fill(self, "scenarios_dir", tuple(Path(p) for p in self.scenarios_dir))
         fill(self, "epochs", self.epochs if self.epochs is not None else (2 if self.quick else 20))
         fill(self, "k", self.k if self.k is not None else (5 if self.quick else 20))
-        self.specs()  # a bad scenario or data override fails here
+        if not self.specs:  # parsed here, once: a bad scenario or data override fails now
+            raise InputError(f"scenario {self.scenario!r}: no domain")
         if not self.methods:
             raise InputError("methods: no method named")
         if len(set(self.methods)) != len(self.methods):
@@ -92,8 +94,10 @@ class ExperimentConfig:
         except ValueError as error:
             raise InputError(f"--set {error}") from None
 
+    @cached_property
     def specs(self) -> list[DomainSpec]:
-        """The curriculum's domains, with the ``data`` settings applied to their knobs."""
+        """The curriculum's domains, with the ``data`` settings applied to their knobs (parsed
+        once per configuration)."""
         return parse_scenario(self.scenario, list(self.scenarios_dir), self.settings.get("data"))
 
     def model_config(self) -> ModelConfig:

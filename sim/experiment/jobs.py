@@ -40,7 +40,7 @@ APP_ID = "c2i-testbed"
 
 def prepare(config: ExperimentConfig, execution: Execution) -> Curriculum:
     """Generate (or read from the content-hashed cache) every domain of the curriculum."""
-    specs = config.specs()
+    specs = config.specs
     writable_folder(execution.cache, "--cache")
     tasks, domains = make_tasks(
         specs,

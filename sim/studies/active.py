@@ -68,7 +68,7 @@ class ActiveOptions:
 def grid_specs(config: ExperimentConfig) -> list[DomainSpec]:
     """The grid: one numeric family that can simulate single scenes, two values or more."""
     where = f"scenario {config.scenario!r} (an active curriculum's grid)"
-    return knob_grid(config.specs(), where, "crowd_noise_0.1..0.6:0.05", single_scenes=True)
+    return knob_grid(config.specs, where, "crowd_noise_0.1..0.6:0.05", single_scenes=True)
 
 
 class SceneSource:

@@ -63,7 +63,7 @@ def drift_specs(config: ExperimentConfig) -> list[DomainSpec]:
     """The probe domains: one numeric family that can simulate single scenes, two values or
     more."""
     where = f"scenario {config.scenario!r} (a drift)"
-    return knob_grid(config.specs(), where, "crowd_noise_0.1..0.6", single_scenes=True)
+    return knob_grid(config.specs, where, "crowd_noise_0.1..0.6", single_scenes=True)
 
 
 def drift_stream(

@@ -95,7 +95,7 @@ def test_file_patterns_match_regular_files_only(tmp_path, kind):
 def test_leave_one_out_never_trains_on_the_held_out_recordings():
     """sgan's protocol: each held-out scene's recordings appear in its test split alone."""
     for spec in parse_scenario("eth_ucy_loo_eth,hotel,univ,zara1,zara2"):
-        files = {split: spec.knobs()[split] for split in ("train", "val", "test")}
+        files = {split: spec.knobs[split] for split in ("train", "val", "test")}
         held_out = {Path(p).stem for p in files["test"]}
         seen = {Path(p).stem.rsplit("_", 1)[0] for split in ("train", "val") for p in files[split]}
         assert held_out and not held_out & seen, spec.name

@@ -37,14 +37,14 @@ def test_explicit_step_list_and_join():
 
 def test_values_set_the_named_knob_over_the_family_defaults():
     (spec,) = parse_scenario("crowd_radius_0.3")
-    knobs = spec.knobs()
+    knobs = spec.knobs
     assert knobs["radius"] == 0.3 and knobs["agents"] == 2 and knobs["layout"] == "circle_crossing"
 
 
 def test_name_valued_family_resolves_files():
     specs = parse_scenario("eth_ucy_univ,eth")
     assert [s.name for s in specs] == ["eth_ucy_univ", "eth_ucy_eth"]
-    univ = specs[0].knobs()
+    univ = specs[0].knobs
     assert [Path(p).name for p in univ["train"]] == [
         "students001_train.txt",
         "students003_train.txt",
@@ -55,7 +55,7 @@ def test_name_valued_family_resolves_files():
 def test_numbered_names_take_ranges_and_lists():
     ranged = parse_scenario("orca_radius_0.2..0.4")
     assert [s.label for s in ranged] == ["0.2", "0.3", "0.4"]
-    assert Path(ranged[1].knobs()["train"][0]).name == "radius_0.3_train.txt"
+    assert Path(ranged[1].knobs["train"][0]).name == "radius_0.3_train.txt"
     assert [s.label for s in parse_scenario("orca_radius_0.6,0.1")] == ["0.6", "0.1"]
     with pytest.raises(InputError, match="'0.7' is not a value of family 'orca_radius'"):
         parse_scenario("orca_radius_0.5..0.7")
@@ -69,7 +69,7 @@ def test_a_copy_of_a_built_in_family_replaces_it_with_a_notice(tmp_path, capsys)
     text = (SCENARIOS_DIR / "crowd_noise.toml").read_text().replace("agents = 10", "agents = 3")
     (tmp_path / "crowd_noise.toml").write_text(text)
     (spec,) = parse_scenario("crowd_noise_0.2", [tmp_path])
-    assert spec.knobs()["agents"] == 3 and spec.family.path.parent == tmp_path
+    assert spec.knobs["agents"] == 3 and spec.family.path.parent == tmp_path
     assert "replaces the built-in crowd_noise" in capsys.readouterr().err
     (other := tmp_path / "more").mkdir()
     (other / "crowd_noise.toml").write_text(text)
@@ -79,7 +79,7 @@ def test_a_copy_of_a_built_in_family_replaces_it_with_a_notice(tmp_path, capsys)
 
 def test_data_overrides_change_knobs_and_split_sizes():
     (spec,) = parse_scenario("crowd_noise_0.2", None, {"agents": 4, "splits.train": 7})
-    assert spec.knobs()["agents"] == 4 and spec.family.splits.train == 7
+    assert spec.knobs["agents"] == 4 and spec.family.splits.train == 7
     with pytest.raises(InputError, match="splits.train, .val or .test"):
         parse_scenario("crowd_noise_0.2", None, {"splits.trian": 7})
 
