@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+POINT_DRAWS = 16  # the point prediction (K = 1) is the mean of at least this many sampled futures
+
 
 def displacement_errors(pred: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """ADE and FDE of every sample and agent: pred (K, T, N, 2), truth (T, N, 2) -> (K, N) each."""
@@ -39,22 +41,27 @@ def best_of_k(errors: np.ndarray, scene_start: np.ndarray, mode: str) -> np.ndar
 
 
 def evaluate_predictions(
-    pred: np.ndarray, truth: np.ndarray, scene_start: np.ndarray
+    pred: np.ndarray, truth: np.ndarray, scene_start: np.ndarray, point: np.ndarray | None = None
 ) -> dict[str, float]:
-    """ADE/FDE at K = 1 (the first sample) and best-of-K, joint and per agent, in metres, and
-    the spread of the K endpoints (mean distance of each agent's K final points to their mean)."""
+    """ADE/FDE in metres: best of K, joint and per agent; ``ade_draw``, one random draw (the
+    first sample); ``ade_k1``, the point prediction ``point`` (T, N, 2), when given; and the
+    spread of the K endpoints (mean distance of each agent's K final points to their mean)."""
     ade, fde = displacement_errors(pred, truth)
     final = pred[:, -1]  # (K, N, 2)
     spread = np.linalg.norm(final - final.mean(axis=0), axis=-1).mean()
-    return {
+    scores = {
         "ade": float(best_of_k(ade, scene_start, "joint").mean()),
         "fde": float(best_of_k(fde, scene_start, "joint").mean()),
         "ade_agent": float(best_of_k(ade, scene_start, "agent").mean()),
         "fde_agent": float(best_of_k(fde, scene_start, "agent").mean()),
-        "ade_k1": float(ade[0].mean()),
-        "fde_k1": float(fde[0].mean()),
+        "ade_draw": float(ade[0].mean()),
+        "fde_draw": float(fde[0].mean()),
         "endpoint_spread": float(spread),
     }
+    if point is not None:
+        point_ade, point_fde = displacement_errors(point[None], truth)
+        scores |= {"ade_k1": float(point_ade.mean()), "fde_k1": float(point_fde.mean())}
+    return scores
 
 
 def average_seen(matrix: np.ndarray) -> np.ndarray:

@@ -6,7 +6,18 @@ from typing import Any
 
 import numpy as np
 
-from c2inet.metrics import average_seen, backward_transfer, forgetting_final, forgetting_worst
+from c2inet.metrics import (
+    POINT_DRAWS,
+    average_seen,
+    backward_transfer,
+    forgetting_final,
+    forgetting_worst,
+)
+from c2inet.significance import interval, paired
+
+POINT_RULE = f"max(K, {POINT_DRAWS}) sampled futures"
+COMPARED = ("ade", "ade_k1")  # the metrics compared over seeds (best of K, point prediction)
+REFERENCE = "finetune"  # every method is compared with it, paired over seeds
 
 
 def _rounded(values) -> list[float]:
@@ -18,6 +29,10 @@ def _clean(array: np.ndarray) -> list:
     return [
         [None if np.isnan(v) else round(float(v), 6) for v in row] for row in np.atleast_2d(array)
     ]
+
+
+def _bounds(pair: tuple[float, float] | None) -> list[float] | None:
+    return None if pair is None else _rounded(pair)
 
 
 def _forgetting(score, matrices: list[np.ndarray]) -> tuple[list[float], float]:
@@ -45,11 +60,12 @@ def summarise(
     # other ways the model predicts (C2INet's C from the posterior): suffixes of its metrics
     out["variants"] = [k.removeprefix("ade_k1_") for k in runs[0] if k.startswith("ade_k1_")]
     suffixes = ["", *(f"_{v}" for v in out["variants"])]
-    for metric in (f"{m}{s}" for s in suffixes for m in ("ade", "fde", "ade_k1", "fde_k1")):
+    measured = ("ade", "fde", "ade_k1", "fde_k1", "ade_draw", "fde_draw")
+    for metric in (f"{m}{s}" for s in suffixes for m in measured if f"{m}{s}" in runs[0]):
         seen = np.array([average_seen(r[metric]) for r in runs])
         out[f"avg_seen_{metric}"] = _rounded(seen.mean(0))
         out[f"avg_seen_{metric}_std"] = _rounded(seen.std(0))
-    for metric in (f"{m}{s}" for s in suffixes for m in ("ade", "ade_k1")):
+    for metric in (f"{m}{s}" for s in suffixes for m in ("ade", "ade_k1", "ade_draw")):
         matrices = [r[metric] for r in runs]
         for name, score in (("final", forgetting_final), ("worst", forgetting_worst)):
             per_task, mean = _forgetting(score, matrices)
@@ -58,10 +74,75 @@ def summarise(
     out["backward_transfer_ade"] = round(
         float(np.mean([backward_transfer(r["ade"]) for r in runs])), 6
     )
-    for key in ("queue_size", "pruned"):
+    for metric in (f"{m}{s}" for s in suffixes for m in COMPARED):
+        # the per-seed numbers a paired comparison needs: final average and final forgetting
+        out[f"final_{metric}_per_seed"] = [round(float(np.mean(r[metric][-1])), 6) for r in runs]
+        forgetting = [
+            forgetting_final(r[metric]).mean() if len(r[metric]) > 1 else 0.0 for r in runs
+        ]
+        out[f"forgetting_final_{metric}_per_seed"] = _rounded(forgetting)
+    for key in ("queue_size", "pruned", "memory_floats"):
         if extras and extras[0] and key in extras[0][0]:
             out[key] = [int(np.mean([e[i][key] for e in extras])) for i in range(len(extras[0]))]
     return out
+
+
+def compare(
+    methods: dict[str, dict[str, Any]], reference: str = REFERENCE
+) -> dict[str, dict[str, Any]]:
+    """Every method (and test-time rule) against ``reference`` on the same seeds: final average
+    error and final forgetting, each with its mean, 95 % interval, the paired difference, its
+    interval and p-value. Empty when ``reference`` did not run."""
+    if reference not in methods:
+        return {}
+    base = methods[reference]
+    out: dict[str, dict[str, Any]] = {}
+    for name, m in methods.items():
+        for variant in ["", *m.get("variants", [])]:
+            row: dict[str, Any] = {}
+            for metric in COMPARED:
+                key = f"{metric}_{variant}" if variant else metric
+                for score in ("final", "forgetting_final"):
+                    mine, theirs = m[f"{score}_{key}_per_seed"], base[f"{score}_{metric}_per_seed"]
+                    test = paired(mine, theirs)
+                    row[f"{score}_{metric}"] = {
+                        "mean": round(float(np.mean(mine)), 6),
+                        "interval": _bounds(interval(mine)),
+                        "difference": round(test.difference, 6),
+                        "difference_interval": _bounds(test.interval),
+                        "p_value": None if test.p_value is None else round(test.p_value, 6),
+                        "significant": test.significant,
+                    }
+            row["memory_floats"] = m.get("memory_floats", [0])[-1]  # after the last task
+            out[f"{name}, {variant.replace('_', ' from ', 1)}" if variant else name] = row
+    return out
+
+
+def comparison_rows(comparison: dict[str, dict[str, Any]], metric: str) -> list[list[str]]:
+    """The Markdown rows of :func:`compare` for one metric; ``*`` marks p < 0.05."""
+
+    def cell(entry: dict[str, Any], signed: bool = False) -> str:
+        low_high = entry["difference_interval" if signed else "interval"]
+        value = entry["difference" if signed else "mean"]
+        text = f"{value:+.3f}" if signed else f"{value:.3f}"
+        return text + ("" if low_high is None else f" [{low_high[0]:+.3f}, {low_high[1]:+.3f}]")
+
+    header = [
+        "method",
+        "final avg [95 % CI]",
+        f"vs {REFERENCE} [95 % CI]",
+        "p",
+        "forgetting final [95 % CI]",
+        "memory (floats)",
+    ]
+    rows = [header]
+    for name, row in comparison.items():
+        final, forget = row[f"final_{metric}"], row[f"forgetting_final_{metric}"]
+        p = final["p_value"]
+        mark = "" if p is None else f"{p:.3f}" + (" *" if final["significant"] else "")
+        memory = f"{row['memory_floats']:,}"
+        rows.append([name, cell(final), cell(final, True), mark or "-", cell(forget), memory])
+    return rows
 
 
 def column_labels(labels: list[str]) -> list[str]:
@@ -75,7 +156,8 @@ def table_rows(
     """One row per method (and per variant, e.g. C2INet with C from the posterior): ADE/FDE
     averaged over seen tasks after each task, then forgetting.
 
-    ``metric`` ``ade`` gives best of K, ``ade_k1`` one sample.
+    ``metric`` ``ade`` gives best of K, ``ade_k1`` the point prediction, ``ade_draw`` one random
+    draw.
     """
     header = ["method", *column_labels(labels), "forgetting final", "forgetting worst"]
     rows = [header]
@@ -151,7 +233,9 @@ def caption(k: int, seeds: int, metric: str = "ade") -> str:
     """What the cells of :func:`table_rows` are, in a sentence."""
     samples = f"best of K = {k} samples, the minimum taken per scene (joint)"
     if metric == "ade_k1":
-        samples = "one sample (K = 1)"
+        samples = f"the point prediction (K = 1: the mean of {POINT_RULE})"
+    elif metric == "ade_draw":
+        samples = "one random draw (the first of the K samples)"
     spread = f"mean ± std of ADE over {seeds} seeds" if seeds > 1 else "one seed"
     return (
         f"ADE/FDE in metres, {samples}, averaged over the tasks seen so far after each task "
@@ -206,15 +290,37 @@ def markdown_report(
         "",
         markdown_table(table_rows(methods, labels, "ade")),
         "",
-        "One sample (K = 1):",
+        f"Point prediction (K = 1), the mean of {POINT_RULE}; a deterministic model's mean is "
+        "its prediction:",
         "",
         markdown_table(table_rows(methods, labels, "ade_k1")),
+        "",
+        "One random draw (the first of the K samples; what K = 1 meant before the point "
+        "prediction, kept for comparison):",
+        "",
+        markdown_table(table_rows(methods, labels, "ade_draw")),
     ]
+    seeds = min(m["seeds"] for m in methods.values())
+    comparison = compare(methods)
+    if comparison and seeds > 1:
+        parts += [
+            "",
+            f"Against {REFERENCE}, paired over the same {seeds} seeds (Student's paired t-test; "
+            "`*`: p < 0.05; a difference whose interval holds 0 is within the seed spread). "
+            "Final average ADE after the last task, final forgetting, and the floats each "
+            "method keeps between tasks:",
+        ]
+        for metric, title in (("ade_k1", "point prediction (K = 1)"), ("ade", f"best of {k}")):
+            parts += ["", f"{title}:", "", markdown_table(comparison_rows(comparison, metric))]
+    elif not comparison:
+        parts += ["", f"No paired comparison: {REFERENCE} did not run."]
+    else:
+        parts += ["", "No paired comparison: one seed has no spread (run `--seeds 5`)."]
     for name, m in methods.items():
         parts += ["", f"## {name} ({m['seeds']} seed(s))", ""]
         for key, title in (
             ("ade", f"ADE, best of {k}, joint"),
-            ("ade_k1", "ADE, one sample"),
+            ("ade_k1", "ADE, point prediction (K = 1)"),
             ("fde", f"FDE, best of {k}, joint"),
         ):
             rows = [["after \\ on", *labels]]

@@ -23,10 +23,11 @@ from c2inet.diagnostics import diagnose
 from c2inet.errors import InputError
 from c2inet.files import write_atomic
 from c2inet.methods.base import Method, TaskContext
-from c2inet.metrics import evaluate_predictions
+from c2inet.metrics import POINT_DRAWS, evaluate_predictions
 from c2inet.options import require
 
-VARIANT_METRICS = ("ade", "fde", "ade_k1", "fde_k1")
+VARIANT_METRICS = ("ade", "fde", "ade_k1", "fde_k1", "ade_draw", "fde_draw")
+POINT_SEED = 7_919  # offsets the seed of the point prediction's own draws from the K samples'
 
 
 @dataclass
@@ -111,12 +112,26 @@ def evaluate(
     k: int,
     seed: int,
     batch_scenes: int = 256,
+    point_draws: int = POINT_DRAWS,
     **options: Any,
 ) -> dict[str, float]:
-    """Metrics of ``model`` on ``windows`` with ``k`` samples, reproducible for a seed."""
+    """Metrics of ``model`` on ``windows`` with ``k`` samples, reproducible for a seed.
+
+    The point prediction (``ade_k1``) is the mean of the K samples when there are at least
+    ``point_draws``, else of ``point_draws`` samples drawn apart (a deterministic model's mean
+    is its prediction); ``point_draws=0`` skips it, for validation curves that read ``ade`` only.
+    """
     pred = sample_predictions(model, windows, k, seed, batch_scenes, **options)
     truth = windows.positions[:, windows.obs_len :].transpose(1, 0, 2)
-    return evaluate_predictions(pred, truth, windows.scene_start)
+    point = None
+    if point_draws:
+        draws = pred
+        if k < point_draws:
+            draws = sample_predictions(
+                model, windows, point_draws, seed + POINT_SEED, batch_scenes, **options
+            )
+        point = draws.mean(axis=0)
+    return evaluate_predictions(pred, truth, windows.scene_start, point)
 
 
 def evaluate_all(
@@ -204,7 +219,10 @@ class ContinualTrainer:
                 scores = evaluate_all(model, other.test, cfg.k, cfg.seed + j, cfg.eval_batch_scenes)
                 for metric, value in scores.items():
                     result.matrices.setdefault(metric, np.full((n, n), np.nan))[i, j] = value
-            result.summaries.append(method.summary())
+            kept = method.memory_floats(model)
+            if method.sees_old_tasks:  # joint keeps every finished task's training data
+                kept += sum(w.positions.size for w in self.earlier_training_data(i + 1))
+            result.summaries.append({**method.summary(), "memory_floats": kept})
             if cfg.diagnostics:
                 seen_tasks = self.tasks[: i + 1]
                 result.diagnostics.append(
@@ -293,7 +311,7 @@ class ContinualTrainer:
                 for seen in self.tasks[: ctx.index + 1]:
                     if seen.val is not None:
                         record[f"val_ade/{seen.name}"] = evaluate(
-                            model, seen.val, 1, cfg.seed, cfg.eval_batch_scenes
+                            model, seen.val, 1, cfg.seed, cfg.eval_batch_scenes, point_draws=0
                         )["ade"]
             self.history.append(record)
             self._notify("epoch_end", record)

@@ -21,7 +21,7 @@ import numpy as np
 from c2inet.errors import InputError
 
 LOGGERS = ("csv", "tensorboard")
-ROW_METRICS = ("ade", "fde", "ade_k1", "fde_k1")
+ROW_METRICS = ("ade", "fde", "ade_k1", "fde_k1", "ade_draw", "fde_draw")
 
 
 def epoch_step(task: int, epoch: int, epochs: int) -> int:

@@ -125,6 +125,24 @@ class Method:
         """Extra per-task figures for the report (e.g. the queue size)."""
         return {}
 
+    def memory_floats(self, model: torch.nn.Module) -> int:
+        """How many floating-point numbers the method keeps between tasks besides the model
+        (buffers, anchors, Fisher, old parameters, the queue): what :meth:`state_dict` holds."""
+        return count_floats(self.state_dict(model))
+
+
+def count_floats(value: Any) -> int:
+    """The floating-point entries of tensors and arrays in nested dicts, lists and tuples."""
+    if isinstance(value, dict):
+        return sum(count_floats(v) for v in value.values())
+    if isinstance(value, list | tuple):
+        return sum(count_floats(v) for v in value)
+    if isinstance(value, torch.Tensor) and value.is_floating_point():
+        return value.numel()
+    if isinstance(value, np.ndarray) and np.issubdtype(value.dtype, np.floating):
+        return value.size
+    return 0
+
 
 def discover() -> dict[str, type[Method]]:
     """Every method: the modules of ``c2inet.methods`` register their classes on import."""

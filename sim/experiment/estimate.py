@@ -50,7 +50,7 @@ def method_seconds(config, name: str, tasks: list[Task]) -> float:
             steps = sum(math.ceil(len(t.train) / train.batch_scenes) for t in tasks)
             total += per_step * steps * config.epochs
             if first.val is not None and train.val_every:
-                val = _seconds(lambda: evaluate(model, first.val, 1, 0))
+                val = _seconds(lambda: evaluate(model, first.val, 1, 0, point_draws=0))
                 total += val * config.epochs / train.val_every * n * (n + 1) / 2
         total += _seconds(lambda: evaluate_all(model, first.test, config.k, 0)) * n * n
         if train.diagnostics:

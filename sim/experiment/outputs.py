@@ -3,8 +3,9 @@
 A run's folder holds ``config.json`` (what it computes and how, written first), ``jobs/`` (per
 method and seed: checkpoints, ``result.json``, the job's recording), and when it finishes
 ``metrics.json`` (the machine-readable contract: per method best-of-K joint ``ade``/``fde``,
-single-sample ``ade_k1``/``fde_k1``, ``avg_seen_ade``, ``forgetting_final_ade`` and
-``forgetting_worst_ade``, ``diagnostics``, ``seeds``; row i is after task i), ``matrices/*.csv``,
+the point prediction's ``ade_k1``/``fde_k1``, one random draw's ``ade_draw``/``fde_draw``,
+``avg_seen_ade``, ``forgetting_final_ade`` and ``forgetting_worst_ade``, ``diagnostics``,
+``seeds``; row i is after task i), ``matrices/*.csv``,
 ``report.md``, ``figures/``, ``run_card.json`` and ``recording.rrd``. Folders never mix runs.
 """
 
@@ -29,7 +30,13 @@ import torch
 
 from c2inet.errors import InputError
 from c2inet.files import writable_folder, write_text_atomic
-from c2inet.report import markdown_report, matrix_csv, summarise, summarise_diagnostics
+from c2inet.report import (
+    compare,
+    markdown_report,
+    matrix_csv,
+    summarise,
+    summarise_diagnostics,
+)
 from sim.data import SPLITS
 from viz import figures
 from viz.recording import merge_recordings
@@ -307,6 +314,7 @@ def write_outputs(
         "seed": config.seed,
         "epochs": config.epochs,
         "methods": summary,
+        "comparison": compare(summary),
     }
     write_text_atomic(out / "metrics.json", json.dumps(metrics, indent=1) + "\n")
     for name, result in summary.items():

@@ -2,7 +2,9 @@
 
 import numpy as np
 import pytest
+import torch
 
+from c2inet.data import Windows
 from c2inet.metrics import (
     average_seen,
     backward_transfer,
@@ -13,6 +15,7 @@ from c2inet.metrics import (
     forgetting_worst,
 )
 from c2inet.report import summarise, summarise_diagnostics, table_rows
+from c2inet.trainer import VARIANT_METRICS, evaluate
 
 
 def test_displacement_errors_by_hand():
@@ -42,9 +45,27 @@ def test_joint_minimum_is_taken_per_scene():
 def test_evaluate_predictions_labels_every_aggregation():
     truth = np.zeros((1, 2, 2))
     pred = np.array([[[[1.0, 0.0], [4.0, 0.0]]], [[[3.0, 0.0], [1.5, 0.0]]]])  # (K=2, T=1, N=2, 2)
-    scores = evaluate_predictions(pred, truth, np.array([0, 2]))
+    scores = evaluate_predictions(pred, truth, np.array([0, 2]), point=pred.mean(axis=0))
     assert scores["ade"] == pytest.approx(2.25) and scores["ade_agent"] == pytest.approx(1.25)
-    assert scores["ade_k1"] == pytest.approx(2.5) and scores["fde"] == pytest.approx(2.25)
+    assert scores["ade_draw"] == pytest.approx(2.5) and scores["fde"] == pytest.approx(2.25)
+    assert scores["ade_k1"] == pytest.approx((2.0 + 2.75) / 2)  # the mean of the two samples
+    assert "ade_k1" not in evaluate_predictions(pred, truth, np.array([0, 2]))
+
+
+class NoisyOracle(torch.nn.Module):
+    """The true future plus symmetric Gaussian noise: its samples scatter around the truth."""
+
+    def predict(self, batch, samples: int) -> torch.Tensor:
+        truth = batch.fut
+        return truth + 0.5 * torch.randn(samples, *truth.shape)
+
+
+def test_the_point_prediction_beats_one_draw_when_the_noise_is_symmetric():
+    windows = Windows(np.random.default_rng(0).normal(size=(40, 20, 2)), np.arange(0, 41, 2))
+    for k in (1, 5, 20):  # fewer than 16 samples: the point prediction draws its own 16
+        scores = evaluate(NoisyOracle(), windows, k, seed=3)
+        assert scores["ade_k1"] < 0.5 * scores["ade_draw"]
+    assert evaluate(NoisyOracle(), windows, 20, 3) == evaluate(NoisyOracle(), windows, 20, 3)
 
 
 def test_continual_scores_by_hand():
@@ -57,15 +78,17 @@ def test_continual_scores_by_hand():
 
 
 def test_summary_averages_seeds_and_names_each_variant():
-    first = {m: np.array([[1.0, 3.0], [2.0, 1.0]]) for m in ("ade", "fde", "ade_k1", "fde_k1")}
+    first = {m: np.array([[1.0, 3.0], [2.0, 1.0]]) for m in VARIANT_METRICS}
     second = {m: v + 1.0 for m, v in first.items()}
     for run in (first, second):
-        run.update({f"{m}_c_posterior": run[m] / 2 for m in ("ade", "fde", "ade_k1", "fde_k1")})
+        run.update({f"{m}_c_posterior": run[m] / 2 for m in VARIANT_METRICS})
     out = summarise([first, second], [[{}, {}], [{}, {}]])
     assert out["variants"] == ["c_posterior"]
     assert out["avg_seen_ade"] == [1.5, 2.0] and out["avg_seen_ade_std"] == [0.5, 0.5]
     assert out["avg_seen_ade_c_posterior"] == [0.75, 1.0]
     assert out["forgetting_final_ade"] == 1.0 and out["forgetting_final_ade_c_posterior"] == 0.5
+    assert out["final_ade_per_seed"] == [1.5, 2.5]  # what the paired comparison reads
+    assert out["forgetting_final_ade_per_seed"] == [1.0, 1.0]
     rows = table_rows({"m": out}, ["a", "b"])
     assert [r[0] for r in rows[1:]] == ["m", "m, c from posterior"]
 

@@ -1,0 +1,54 @@
+"""The seed statistics: intervals, and a paired test that finds a planted difference only."""
+
+import numpy as np
+import pytest
+
+from c2inet.report import compare, comparison_rows, summarise
+from c2inet.significance import interval, paired
+from c2inet.trainer import VARIANT_METRICS
+
+
+def test_the_interval_holds_the_mean_and_widens_with_the_spread():
+    low, high = interval([1.0, 2.0, 3.0])
+    assert low < 2.0 < high and high - low == pytest.approx(2 * 4.303 * 1 / np.sqrt(3), 1e-3)
+    wide = interval([0.0, 2.0, 4.0])
+    assert wide[1] - wide[0] > high - low
+    assert interval([1.0]) is None
+
+
+def test_the_paired_test_flags_a_planted_difference_and_not_a_null_one():
+    rng = np.random.default_rng(0)
+    seed_effect = rng.normal(0.3, 0.05, 5)  # seeds vary more than the planted difference
+    planted = paired(seed_effect + 0.02 + rng.normal(0, 0.002, 5), seed_effect)
+    assert planted.significant and planted.difference == pytest.approx(0.02, abs=0.003)
+    assert planted.interval[0] > 0
+    nulls = [paired(seed_effect + rng.normal(0, 0.01, 5), seed_effect) for _ in range(200)]
+    false_alarms = np.mean([t.significant for t in nulls])
+    assert 0.0 < false_alarms < 0.12  # about the 5 % a test at 0.05 allows
+    unpaired_blind = paired(seed_effect + 0.02, rng.permutation(seed_effect))
+    assert not unpaired_blind.significant  # the pairing is what finds it
+    with pytest.raises(ValueError, match="seeds must match"):
+        paired([1.0, 2.0], [1.0])
+    assert paired([1.0], [2.0]).p_value is None
+
+
+def runs_of(offset: float, seeds: int = 5) -> dict:
+    """summarise()'s output for a method whose error is the seed's noise plus ``offset``."""
+    rng = np.random.default_rng(1)  # the same seeds for every method: paired
+    runs = []
+    for noise in rng.normal(0, 0.05, seeds):
+        base = np.array([[0.3, 0.5], [0.35, 0.32]]) + noise + offset
+        runs.append({m: base.copy() for m in VARIANT_METRICS})
+    return summarise(runs, [[{"memory_floats": 10}, {"memory_floats": 20}]] * seeds)
+
+
+def test_the_comparison_marks_only_the_method_that_differs():
+    methods = {"finetune": runs_of(0.0), "better": runs_of(-0.03), "same": runs_of(0.0)}
+    comparison = compare(methods)
+    assert comparison["better"]["final_ade_k1"]["significant"]
+    assert comparison["better"]["final_ade_k1"]["difference"] == pytest.approx(-0.03)
+    assert not comparison["same"]["final_ade_k1"]["significant"]
+    assert comparison["better"]["memory_floats"] == 20
+    rows = comparison_rows(comparison, "ade_k1")
+    assert rows[2][0] == "better" and rows[2][3].endswith("*") and not rows[3][3].endswith("*")
+    assert compare({"better": methods["better"]}) == {}  # no reference, no comparison
