@@ -24,7 +24,7 @@ import numpy as np
 from c2inet.data import Windows
 from c2inet.methods.base import Method
 from c2inet.model import ModelConfig
-from c2inet.trainer import ContinualTrainer, Result, Task, TrainConfig
+from c2inet.trainer import TRAIN_SPACE, ContinualTrainer, Result, Task, TrainConfig
 
 HOOKS = (
     "before_task",
@@ -107,6 +107,22 @@ def check_contract(cls: type[Method]) -> None:
             _fail(cls, f"overrides the hook {hook!r} but its module docstring does not name it")
     if not dataclasses.is_dataclass(cls.Options) or not cls.Options.__dataclass_params__.frozen:
         _fail(cls, "Options must be a frozen dataclass")
+    check_search_space(cls)
+
+
+def check_search_space(cls: type[Method]) -> None:
+    """Every searched option exists (the method's own, or ``model.KEY``/``train.KEY``) and its
+    default lies inside the searched range, so the default is one of the tuner's candidates."""
+    if cls.search_space and not cls.trains:
+        _fail(cls, "declares a search space but does not train")
+    for key, space in {**cls.search_space, **(TRAIN_SPACE if cls.trains else {})}.items():
+        scope, _, name = key.rpartition(".")
+        owner = {"": cls.Options, "model": ModelConfig, "train": TrainConfig}.get(scope)
+        fields = {} if owner is None else {f.name: f for f in dataclasses.fields(owner)}
+        if name not in fields:
+            _fail(cls, f"searches {key!r}, which is no option of it")
+        if not space.holds(fields[name].default):
+            _fail(cls, f"the default of {key!r} lies outside its searched range")
 
 
 def check_metrics(cls: type[Method], result: Result) -> None:

@@ -22,7 +22,7 @@ from torch import nn
 from c2inet.backbones import BACKBONES
 from c2inet.batch import Batch, make_batch, variety_loss
 from c2inet.data import OBS_LEN, Windows
-from c2inet.options import require
+from c2inet.options import Tunable, require
 from c2inet.prior import (
     GaussianMixture,
     LearnablePrior,
@@ -39,6 +39,15 @@ from c2inet.prior import (
 C_SOURCES = ("posterior", "prior", "responsible")  # the test-time rules for C
 DECODER_INPUTS = ("context", "latents")
 PAST_INPUTS = ("z", "zc")
+
+
+# the latent models' key knobs, searched by the tuner beside the learning rate (C2INet, its
+# queue-free control, MoG, GCRL): the likelihood's sharpness and the two KL weights
+LATENT_SPACE = {
+    "model.likelihood_std": Tunable(0.03, 0.3, log=True),
+    "model.beta_c": Tunable(0.1, 3.0, log=True),
+    "model.beta_z": Tunable(0.1, 3.0, log=True),
+}
 
 
 @dataclass

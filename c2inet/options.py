@@ -10,6 +10,7 @@ import dataclasses
 import math
 import types
 import typing
+from dataclasses import dataclass
 from typing import Any, TypeVar
 
 from c2inet.errors import InputError, did_you_mean
@@ -89,3 +90,22 @@ def require(options: Any, low: float, *names: str, high: float = math.inf, open_
     """:func:`check_range` for each named field of ``options``: ``low <= value <= high``."""
     for name in names:
         check_range(name, getattr(options, name), low, high, open_low=open_low)
+
+
+@dataclass(frozen=True)
+class Tunable:
+    """A range a tuner may search for one option: [low, high], on a log scale if ``log``,
+    whole numbers if ``integer``. Declared beside the options it tunes (``Method.search_space``)
+    so that every method is tuned over its own key knobs with the same budget."""
+
+    low: float
+    high: float
+    log: bool = False
+    integer: bool = False
+
+    def __post_init__(self):
+        if not self.low < self.high or (self.log and self.low <= 0):
+            raise ValueError(f"bad range [{self.low}, {self.high}] (log={self.log})")
+
+    def holds(self, value: Any) -> bool:
+        return self.low <= value <= self.high

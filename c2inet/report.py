@@ -124,8 +124,11 @@ def comparison_rows(comparison: dict[str, dict[str, Any]], metric: str) -> list[
     def cell(entry: dict[str, Any], signed: bool = False) -> str:
         low_high = entry["difference_interval" if signed else "interval"]
         value = entry["difference" if signed else "mean"]
-        text = f"{value:+.3f}" if signed else f"{value:.3f}"
-        return text + ("" if low_high is None else f" [{low_high[0]:+.3f}, {low_high[1]:+.3f}]")
+        form = "+.3f" if signed else ".3f"
+        text = format(value, form)
+        if low_high is None:
+            return text
+        return f"{text} [{format(low_high[0], form)}, {format(low_high[1], form)}]"
 
     header = [
         "method",

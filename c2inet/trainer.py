@@ -24,9 +24,10 @@ from c2inet.errors import InputError
 from c2inet.files import write_atomic
 from c2inet.methods.base import Method, TaskContext
 from c2inet.metrics import POINT_DRAWS, evaluate_predictions
-from c2inet.options import require
+from c2inet.options import Tunable, require
 
 VARIANT_METRICS = ("ade", "fde", "ade_k1", "fde_k1", "ade_draw", "fde_draw")
+TRAIN_SPACE = {"train.lr": Tunable(3e-4, 3e-2, log=True)}  # tuned for every method that trains
 POINT_SEED = 7_919  # offsets the seed of the point prediction's own draws from the K samples'
 
 

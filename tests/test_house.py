@@ -36,7 +36,7 @@ def test_imports_point_one_way(package):
         assert not wrong, f"{path.relative_to(ROOT)} imports {sorted(wrong)}"
 
 
-COMMANDS = {"sim.run", "sim.sweep", "sim.generate", "sim.study", "sim.cli", "sim.fuzz"}
+COMMANDS = {"sim.run", "sim.sweep", "sim.bench", "sim.generate", "sim.study", "sim.cli", "sim.fuzz"}
 FLOOR_NAMES = ("the world", "the engine", "the studies", "the commands")
 
 

@@ -333,3 +333,42 @@ def study_figure(summary: dict, path: Path) -> None:
     fig.suptitle(summary["study"], fontsize=10)
     fig.tight_layout()
     _save(fig, path)
+
+
+def leaderboard_figure(board: dict[str, Any], path: Path) -> None:
+    """The benchmark's ranking: final average ADE of the point prediction and final forgetting,
+    each a point with its 95 % interval, one row per method in rank order (* p < alpha)."""
+    entries = board["entries"]
+    names = [e["method"] for e in entries]
+    rows = np.arange(len(entries))
+    fig, axes = plt.subplots(1, 2, figsize=(11, 0.35 * len(entries) + 1.6), sharey=True)
+    for ax, key, title in (
+        (axes[0], "final_ade_k1", "final average ADE, K = 1 (m)"),
+        (axes[1], "forgetting_final_ade_k1", "final forgetting, K = 1 (m)"),
+    ):
+        for row, e in zip(rows, entries, strict=True):
+            mean, bounds = e[key]["mean"], e[key]["interval"] or [e[key]["mean"]] * 2
+            colour = as_matplotlib(method_colour(row))
+            ax.errorbar(
+                mean,
+                row,
+                xerr=[[mean - bounds[0]], [bounds[1] - mean]],
+                fmt="o",
+                color=colour,
+                capsize=3,
+            )
+            if key == "final_ade_k1" and e[key]["significant"]:
+                ax.annotate("*", (bounds[1], row), xytext=(4, -4), textcoords="offset points")
+        ax.set_xlabel(title)
+        ax.grid(axis="x", color="0.9")
+    axes[1].axvline(0, color="0.7", lw=0.8)
+    axes[0].set_yticks(rows, names)
+    axes[0].invert_yaxis()
+    fig.suptitle(
+        f"{board['scenario']}: {board['trials']} trials a method, {board['seeds']} seeds "
+        f"(bars: 95 % intervals of the mean; * p < {board['alpha']} in a paired test against "
+        f"{board['reference']})",
+        fontsize=9,
+    )
+    fig.tight_layout()
+    _save(fig, path)

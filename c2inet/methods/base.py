@@ -24,7 +24,7 @@ from c2inet.batch import Batch
 from c2inet.data import Windows
 from c2inet.errors import did_you_mean
 from c2inet.model import ModelConfig, Predictor
-from c2inet.options import build
+from c2inet.options import Tunable, build
 
 METHODS: dict[str, type[Method]] = {}
 
@@ -70,6 +70,9 @@ class Method:
     # options that switch the method's mechanism off, changing nothing else (no other use of
     # the random streams): the checker requires them to change the numbers
     inert: ClassVar[dict[str, Any] | None] = None
+    # what a tuner searches beside the learning rate (``TRAIN_SPACE``): the method's own
+    # options by name, shared scopes as ``model.KEY``; every method gets the same trials
+    search_space: ClassVar[dict[str, Tunable]] = {}
 
     def __init_subclass__(cls, register: bool = True, **kwargs):
         """Defining a subclass registers it under its name (``register=False``: not)."""

@@ -20,7 +20,7 @@ import torch
 from c2inet.batch import make_batch
 from c2inet.data import Windows
 from c2inet.methods.base import Method, TaskContext
-from c2inet.options import require
+from c2inet.options import Tunable, require
 
 
 @dataclass(frozen=True)
@@ -39,6 +39,7 @@ class DERPP(Method):
     """Dark experience replay with labels: a reservoir of scenes and their past outputs."""
 
     name = "derpp"
+    search_space = {"alpha": Tunable(0.01, 3.0, log=True), "beta": Tunable(0.01, 3.0, log=True)}
     Options = DERPPOptions
     inert = {"alpha": 0.0, "beta": 0.0}
 

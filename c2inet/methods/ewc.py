@@ -13,7 +13,7 @@ import torch
 
 from c2inet.batch import batches
 from c2inet.methods.base import Method, TaskContext
-from c2inet.options import require
+from c2inet.options import Tunable, require
 
 
 @dataclass(frozen=True)
@@ -32,6 +32,7 @@ class EWC(Method):
     """Online elastic weight consolidation."""
 
     name = "ewc"
+    search_space = {"strength": Tunable(1.0, 1e4, log=True)}
     Options = EWCOptions
     inert = {"strength": 0.0}
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import torch
 
 from c2inet.methods.base import Method
-from c2inet.model import C2INetModel
+from c2inet.model import LATENT_SPACE, C2INetModel
 from c2inet.options import require
 from c2inet.prior import LearnablePrior
 
@@ -34,6 +34,7 @@ class GCRL(Method):
     """The causal STGAT model with a learnt Gaussian-mixture prior, trained sequentially."""
 
     name = "gcrl"
+    search_space = LATENT_SPACE
     Options = GCRLOptions
 
     def build_model(self) -> torch.nn.Module:

@@ -24,7 +24,7 @@ import torch
 from c2inet.batch import Batch, make_batch
 from c2inet.errors import InputError
 from c2inet.methods.base import Method, TaskContext
-from c2inet.options import require
+from c2inet.options import Tunable, require
 
 RISKS = ("irm", "vrex")
 
@@ -51,6 +51,7 @@ class Invariant(Method):
     """An invariance penalty across environments of differing motion scale."""
 
     name = "invariant"
+    search_space = {"weight": Tunable(0.01, 10.0, log=True)}
     Options = InvariantOptions
     inert = {"weight": 0.0}
 

@@ -16,7 +16,7 @@ from typing import Any
 import torch
 
 from c2inet.methods.base import Method, TaskContext
-from c2inet.options import require
+from c2inet.options import Tunable, require
 
 
 @dataclass(frozen=True)
@@ -31,6 +31,7 @@ class LwF(Method):
     """Distillation from the previous task's model on the current scenes."""
 
     name = "lwf"
+    search_space = {"strength": Tunable(0.01, 100.0, log=True)}
     Options = LwFOptions
     inert = {"strength": 0.0}
 

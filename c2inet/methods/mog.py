@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import torch
 
 from c2inet.methods.base import Method, TaskContext
-from c2inet.model import C2INetModel
+from c2inet.model import LATENT_SPACE, C2INetModel
 from c2inet.options import require
 from c2inet.prior import LearnablePrior
 
@@ -34,6 +34,7 @@ class MoG(Method):
     """C2INet's network with a mixture prior of frozen per-task learnt Gaussians."""
 
     name = "mog"
+    search_space = LATENT_SPACE
     Options = MoGOptions
 
     def build_model(self) -> torch.nn.Module:

@@ -21,7 +21,7 @@ from c2inet.batch import Batch, variety_loss
 from c2inet.data import PRED_LEN
 from c2inet.methods.base import Method
 from c2inet.model import GaussianHead, LossOutput, ModelConfig, Predictor, to_positions
-from c2inet.options import require
+from c2inet.options import Tunable, require
 from c2inet.prior import gaussian_sample, kl_standard_normal
 
 
@@ -89,6 +89,7 @@ class PECNet(Method):
     """The endpoint-conditioned CVAE, trained in sequence."""
 
     name = "pecnet"
+    search_space = {"kl_weight": Tunable(0.01, 10.0, log=True), "sigma": Tunable(0.5, 2.0)}
     Options = PECNetOptions
 
     def build_model(self) -> torch.nn.Module:

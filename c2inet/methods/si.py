@@ -17,7 +17,7 @@ from typing import Any
 import torch
 
 from c2inet.methods.base import Method, TaskContext
-from c2inet.options import require
+from c2inet.options import Tunable, require
 
 
 @dataclass(frozen=True)
@@ -38,6 +38,7 @@ class SI(Method):
     """Synaptic intelligence: online path-integral importance of every weight."""
 
     name = "si"
+    search_space = {"strength": Tunable(0.01, 100.0, log=True)}
     Options = SIOptions
     inert = {"strength": 0.0}
 

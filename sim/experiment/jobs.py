@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import os
 import sys
+import time
 import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -64,6 +65,7 @@ class JobResult:
     job: Job
     result: Result
     predictions: dict[str, np.ndarray] = field(default_factory=dict)  # task -> (K, A, T, 2)
+    cpu_seconds: float | None = None  # the job's training and evaluation (after a resume: its rest)
 
     def save(self, folder: Path) -> None:
         """``predictions.npz``, then ``result.json``, whose presence marks the job finished."""
@@ -81,6 +83,7 @@ class JobResult:
             "summaries": r.summaries,
             "history": r.history,
             "diagnostics": r.diagnostics,
+            "cpu_seconds": self.cpu_seconds,
         }
         write_text_atomic(folder / "result.json", json.dumps(data) + "\n")
 
@@ -92,6 +95,7 @@ class JobResult:
         try:
             data = json.loads(path.read_text())
             matrices = {m: np.array(v, dtype=float) for m, v in data.pop("matrices").items()}
+            cpu_seconds = data.pop("cpu_seconds", None)  # absent in results of older versions
             result = Result(matrices=matrices, **data)
             predictions = {}
             path = folder / "predictions.npz"
@@ -110,7 +114,7 @@ class JobResult:
                 f"--resume: {path} is damaged or not this project's ({type(error).__name__}); "
                 f"delete {folder} to run that job again, or use --overwrite"
             ) from None
-        return JobResult(job, result, predictions)
+        return JobResult(job, result, predictions, cpu_seconds)
 
 
 def recording_id(config: ExperimentConfig) -> str:
@@ -166,7 +170,9 @@ def run_job(
         observers=observers,
         progress=None if on_event is None else _epoch_bar,
     )
+    started = time.process_time()
     result = JobResult(job, trainer.run(resume=resume))
+    result.cpu_seconds = round(time.process_time() - started, 2)
     for log in logs:
         log.close()
     if recorder is not None:

@@ -24,6 +24,7 @@ from c2inet.errors import InputError
 from c2inet.files import write_atomic, write_text_atomic
 from sim.experiment.backends import run_jobs
 from sim.experiment.config import Execution, ExperimentConfig, Job, parse_settings, parse_value
+from sim.experiment.curriculum import Curriculum
 from sim.experiment.jobs import JobResult, follow, prepare, record_truth, run_job
 from sim.experiment.outputs import TRUTH_PART, claim, run_root, write_outputs
 
@@ -146,14 +147,41 @@ def run_sweep(
     argv: list[str] | None = None,
 ) -> list[tuple[str, ExperimentConfig, dict]]:
     """Run every experiment of ``sweep`` under ``out``; returns (setting, config, metrics)."""
-    execution, argv = execution or Execution(), argv or []
+    execution = execution or Execution()
     claim(out, sweep, execution, resume, overwrite)
-    started = time.perf_counter()
     planned = []
     for label, config in sweep.experiments():
         folder = out / run_root(config.scenario).name / run_root(label).name
-        claim(folder, config, execution, resume)
-        planned.append((label, config, folder, prepare(config, execution)))
+        planned.append(plan(label, config, folder, execution, resume))
+    done = run_together(planned, execution, resume, argv or [])
+    entries, rows = [], {c: [] for c in COLUMNS}
+    for (label, config, *_), (metrics, results) in zip(planned, done, strict=True):
+        entries.append((label, config, metrics))
+        for column, values in tidy_rows(label, config, results).items():
+            rows[column] += values
+    table = pa.table(rows)
+    write_atomic(out / "results.parquet", lambda tmp: pq.write_table(table, tmp))
+    write_text_atomic(out / "report.md", combined_report(entries))
+    return entries
+
+
+Planned = tuple[str, ExperimentConfig, Path, Curriculum]  # label, configuration, folder, inputs
+
+
+def plan(
+    label: str, config: ExperimentConfig, folder: Path, execution: Execution, resume: bool
+) -> Planned:
+    """Claim ``folder`` for one experiment of a set and prepare its data."""
+    claim(folder, config, execution, resume)
+    return label, config, folder, prepare(config, execution)
+
+
+def run_together(
+    planned: list[Planned], execution: Execution, resume: bool, argv: list[str]
+) -> list[tuple[dict, list[JobResult]]]:
+    """Run the jobs of several experiments together on one backend, then write each one's
+    outputs in its folder; returns each one's metrics and job results, in order."""
+    started = time.perf_counter()
     items = [(i, job) for i, (_, config, _, _) in enumerate(planned) for job in config.jobs()]
     shared = [(config, curriculum.inputs, folder) for _, config, folder, curriculum in planned]
     tasks = [len(curriculum.inputs.tasks) for *_, curriculum in planned]
@@ -170,16 +198,11 @@ def run_sweep(
             lambda item: tasks[item[0]],
         )
     wall = time.perf_counter() - started
-    entries, rows = [], {c: [] for c in COLUMNS}
-    for i, (label, config, folder, curriculum) in enumerate(planned):
+    done = []
+    for i, (_, config, folder, curriculum) in enumerate(planned):
         mine = [r for (index, _), r in zip(items, results, strict=True) if index == i]
         path = folder / TRUTH_PART
         truth = record_truth(config, curriculum, path, None) if config.record else None
         metrics = write_outputs(folder, config, execution, curriculum, mine, truth, wall, argv)
-        entries.append((label, config, metrics))
-        for column, values in tidy_rows(label, config, mine).items():
-            rows[column] += values
-    table = pa.table(rows)
-    write_atomic(out / "results.parquet", lambda tmp: pq.write_table(table, tmp))
-    write_text_atomic(out / "report.md", combined_report(entries))
-    return entries
+        done.append((metrics, mine))
+    return done

@@ -199,3 +199,18 @@ def test_c2inet_offline_enqueues_clusters_and_refines_them(monkeypatch):
     assert 0.25 <= queue.mixture.weights[:3].sum().item() <= 1.0
     assert not torch.allclose(queue.mixture.means[3:], at_start[1].means[3:])  # refined
     torch.testing.assert_close(queue.mixture.means[:3], at_start[1].means[:3])  # kept
+
+
+def test_memory_counts_what_each_method_keeps_between_tasks():
+    tasks = turning_tasks(turns=(0.1, 0.2, 0.3))
+    memory = {
+        name: [s["memory_floats"] for s in trained(name, tasks=tasks)[1].summaries]
+        for name in ("finetune", "coresets", "ewc", "joint")
+    }
+    assert memory["finetune"] == [0, 0, 0]
+    scene = turners(0.1, 1, 0).positions.size  # the floats of one remembered scene
+    assert memory["coresets"][1] > memory["coresets"][0] >= scene  # a buffer per task
+    parameters = sum(p.numel() for p in get_method("ewc")(ModelConfig()).build_model().parameters())
+    assert memory["ewc"][-1] >= 2 * parameters  # a Fisher and an anchor per parameter
+    train = [t.train.positions.size for t in tasks]
+    assert memory["joint"] == [train[0], train[0] + train[1], sum(train)]  # every task's data

@@ -15,6 +15,7 @@ from c2inet.methods.ewc import EWC
 from c2inet.methods.finetune import Finetune
 from c2inet.methods.lwf import LwF
 from c2inet.methods.si import SI
+from c2inet.options import Tunable
 from c2inet.trainer import ContinualTrainer
 
 METHODS = discover()
@@ -71,9 +72,25 @@ class Undocumented(EWC, register=False):
         pass
 
 
+class MisTuned(EWC, register=False):
+    """EWC whose searched range leaves out its default, and names an option it lacks."""
+
+    name = "test-mistuned"
+    search_space = {"strength": Tunable(1e5, 1e6, log=True)}
+
+
+class Misspelt(EWC, register=False):
+    """EWC that searches a model option no model has."""
+
+    name = "test-misspelt"
+    search_space = {"model.beta_q": Tunable(0.1, 1.0)}
+
+
 @pytest.mark.parametrize(
     "cls, message",
     [
+        (MisTuned, "outside its searched range"),
+        (Misspelt, "no option of it"),
         (InertLwF, "inert"),
         (Forgetful, "resumed after task"),
         (Noisy, "same seed"),

@@ -1,0 +1,215 @@
+"""The fair benchmark: tune every method with the same budget, then evaluate it over seeds and
+rank the methods with intervals and paired tests.
+
+A benchmark folder holds ``tuning/`` (the Optuna studies and their trials, ``tuning.json``),
+``evaluation/METHOD/`` (one ordinary run per method with its chosen settings, on the same
+seeds and the same data as every other method) and the leaderboard: ``leaderboard.md``,
+``leaderboard.json``, ``results.parquet`` (every matrix cell, tidy) and ``leaderboard.png``.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from c2inet.files import write_atomic, write_text_atomic
+from c2inet.report import REFERENCE, compare, comparison_rows, markdown_table
+from c2inet.significance import ALPHA
+from sim.experiment.config import Execution, ExperimentConfig
+from sim.experiment.outputs import claim
+from sim.experiment.sweep import COLUMNS, layered, plan, run_together, tidy_rows
+from sim.experiment.tuning import TuneConfig, run_tuning
+from viz.figures import leaderboard_figure
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A benchmark's curriculum, the separate curriculum its methods are tuned on (None: the
+    first task's validation data), and what it stands for."""
+
+    scenario: str
+    tune_scenario: str | None
+    description: str
+
+
+PRESETS = {
+    "radius": Preset(
+        "crowd_radius_0.1..0.6",
+        "crowd_radius_0.15..0.55:0.2",
+        "the paper's Table 2 on the ORCA-steered crowd_radius; tuned on radii between its own",
+    ),
+    "density": Preset(
+        "crowd_density_0.05..0.30:0.05",
+        "crowd_density_0.075..0.275:0.1",
+        "crowd density, where the domain is visible in the past; tuned on densities between",
+    ),
+    "noise": Preset(
+        "crowd_noise_0.1..0.6",
+        "crowd_noise_0.15..0.55:0.2",
+        "behavioural noise of Pymunk crowds; tuned on noise levels between its own",
+    ),
+    "eth-ucy": Preset(
+        "eth_ucy_univ,eth,zara1,zara2,hotel",
+        None,
+        "the ETH-UCY stream, one scene a task; tuned on univ's held-out training scenes",
+    ),
+    "traffic": Preset(
+        "highway_density_0.5..2.0:0.5",
+        None,
+        "highway-env traffic density; tuned on the first density's validation split",
+    ),
+}
+
+
+@dataclass(frozen=True)
+class BenchConfig:
+    """``base``: the evaluation (scenario, methods, seeds, sizes, ``--set``); ``tune_scenario``:
+    the tuning curriculum (None: the first task of ``base.scenario``); ``trials`` per method."""
+
+    base: ExperimentConfig
+    tune_scenario: str | None = None
+    trials: int = 6
+    storage: str | None = None
+
+    def tuning(self) -> TuneConfig:
+        first = self.base.specs[0]
+        scenario = self.tune_scenario or f"{first.family.name}_{first.label}"
+        return TuneConfig(replace(self.base, scenario=scenario), self.trials, self.storage)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "base": self.base.to_json(),
+            "tune_scenario": self.tune_scenario,
+            "trials": self.trials,
+        }
+
+
+def run_bench(
+    bench: BenchConfig,
+    out: Path,
+    execution: Execution | None = None,
+    resume: bool = False,
+    overwrite: bool = False,
+    argv: list[str] | None = None,
+) -> dict[str, Any]:
+    """Tune, evaluate and rank; returns the leaderboard (also written under ``out``)."""
+    execution = execution or Execution()
+    claim(out, bench, execution, resume, overwrite)
+    chosen = run_tuning(bench.tuning(), out / "tuning", execution, resume)
+    planned = []
+    for method in bench.base.methods:
+        settings = layered(bench.base, chosen[method]["settings"])
+        config = replace(bench.base, methods=(method,), settings=settings)
+        folder = out / "evaluation" / method
+        planned.append(plan(method, config, folder, execution, (folder / "config.json").is_file()))
+    done = run_together(planned, execution, resume=True, argv=argv or [])
+    names = bench.base.methods
+    methods = {m: metrics["methods"][m] for m, (metrics, _) in zip(names, done, strict=True)}
+    cost = {
+        m: float(np.mean([r.cpu_seconds or 0.0 for r in results]))
+        for m, (_, results) in zip(names, done, strict=True)
+    }
+    board = leaderboard(bench, methods, chosen, cost)
+    rows = {c: [] for c in COLUMNS}
+    for (_, config, *_), (_, results) in zip(planned, done, strict=True):
+        for column, values in tidy_rows("tuned", config, results).items():
+            rows[column] += values
+    write_atomic(out / "results.parquet", lambda tmp: pq.write_table(pa.table(rows), tmp))
+    write_text_atomic(out / "leaderboard.json", json.dumps(board, indent=1) + "\n")
+    write_text_atomic(out / "leaderboard.md", leaderboard_markdown(board))
+    leaderboard_figure(board, out / "leaderboard.png")
+    return board
+
+
+def leaderboard(
+    bench: BenchConfig,
+    methods: dict[str, dict[str, Any]],
+    chosen: dict[str, dict[str, Any]],
+    cost: dict[str, float],
+) -> dict[str, Any]:
+    """Every method and test-time rule ranked by its final point-prediction ADE, with its
+    interval, the paired test against the reference, forgetting, memory, CPU cost and the
+    settings tuning chose."""
+    comparison = compare(methods)
+    ranked = sorted(comparison, key=lambda name: comparison[name]["final_ade_k1"]["mean"])
+    entries = []
+    for rank, name in enumerate(ranked, 1):
+        method = name.split(",")[0]
+        entries.append(
+            {
+                "rank": rank,
+                "method": name,
+                **comparison[name],
+                "cpu_seconds": round(cost[method], 1),
+                "settings": chosen[method]["settings"],
+                "trials": len(chosen[method]["trials"]),
+            }
+        )
+    base = bench.base
+    return {
+        "scenario": base.scenario,
+        "tune_scenario": bench.tuning().base.scenario,
+        "trials": bench.trials,
+        "seeds": base.seeds,
+        "quick": base.quick,
+        "reference": REFERENCE,
+        "alpha": ALPHA,
+        "entries": entries,
+    }
+
+
+def leaderboard_markdown(board: dict[str, Any]) -> str:
+    """The leaderboard as Markdown: the ranking on the point prediction, then best of K."""
+    comparison = {e["method"]: e for e in board["entries"]}
+    settings = [["method", "chosen settings", "trials", "CPU s / job"]]
+    for e in board["entries"]:
+        if ", c from" in e["method"]:
+            continue
+        text = "; ".join(
+            f"{scope}.{k}={v:.3g}" if isinstance(v, float) else f"{scope}.{k}={v}"
+            for scope, options in e["settings"].items()
+            for k, v in options.items()
+        )
+        cells = [text or "(nothing to tune)", str(e["trials"]), str(e["cpu_seconds"])]
+        settings.append([e["method"], *cells])
+    kind = "quick sizes (a smoke test, not a result)" if board["quick"] else "default sizes"
+    return "\n".join(
+        [
+            f"# Benchmark: `{board['scenario']}`",
+            "",
+            f"Every method tuned with the same budget ({board['trials']} Optuna trials, its "
+            f"defaults first) on `{board['tune_scenario']}` scored on validation data only, then "
+            f"run with the chosen settings over {board['seeds']} seeds; {kind}. Ranked by final "
+            "average ADE of the point prediction (K = 1: the mean of sampled futures). Intervals "
+            f"are 95 %; p is a paired t-test against {board['reference']} over the same seeds, "
+            f"`*` below {board['alpha']}; a difference whose interval holds 0 is within the seed "
+            "spread. Memory: floats a method keeps between tasks besides the model.",
+            "",
+            "Point prediction (K = 1):",
+            "",
+            markdown_table(
+                [["rank", *comparison_rows({}, "ade_k1")[0]]]
+                + [
+                    [str(e["rank"]), *row]
+                    for e, row in zip(
+                        board["entries"], comparison_rows(comparison, "ade_k1")[1:], strict=True
+                    )
+                ]
+            ),
+            "",
+            "Best of K:",
+            "",
+            markdown_table(comparison_rows(comparison, "ade")),
+            "",
+            "Chosen settings and cost:",
+            "",
+            markdown_table(settings),
+            "",
+        ]
+    )

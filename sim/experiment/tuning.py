@@ -1,0 +1,182 @@
+"""Tuning with an equal budget: every method gets the same number of Optuna trials over the
+learning rate and its own key knobs (``Method.search_space``), scored on validation data only.
+
+A trial is an ordinary one-seed experiment on the *tuning curriculum* (a separate scenario, or by
+default the first task of the evaluated one) whose test splits are replaced by validation splits
+(or, where a domain has none, by the last fifth of its training scenes, kept out of training): no
+trial ever reads a test split or a task the tuning curriculum does not hold. The objective is the
+final average point-prediction ADE over the tuning tasks, forgetting included. The first trial of
+every method is its defaults, so tuning never selects worse than the defaults on its objective.
+
+The trials of one round (one per method) run together on the run's backend. The studies live in
+SQLite beside the run (``--storage URL`` for a shared database); the sampler is re-seeded from
+the seed, the method and the number of finished trials before each ask, so a killed tuning
+resumes to the same choices: unfinished trials are failed and asked again, and their jobs
+resume from their own folders.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import zlib
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from c2inet.errors import InputError
+from c2inet.files import write_text_atomic
+from c2inet.methods.base import get_method
+from c2inet.options import Tunable
+from c2inet.trainer import TRAIN_SPACE, Task
+from sim.experiment.config import Execution, ExperimentConfig
+from sim.experiment.curriculum import Curriculum, JobInputs
+from sim.experiment.sweep import layered, plan, run_together
+
+HOLDOUT = 0.2  # share of a domain's training scenes held out where it has no validation split
+
+
+@dataclass(frozen=True)
+class TuneConfig:
+    """What to tune: ``base`` is the tuning experiment (its scenario is the tuning curriculum;
+    its methods are tuned, its ``--set`` settings are every trial's starting point);
+    ``trials`` per method, the same for all."""
+
+    base: ExperimentConfig
+    trials: int = 6
+    storage: str | None = None  # an Optuna storage URL; default: SQLite beside the run
+
+    def __post_init__(self):
+        if self.trials < 1:
+            raise InputError(f"trials must be at least 1, got {self.trials}")
+
+
+def search_space(method: str) -> dict[str, Tunable]:
+    """The options a tuner searches for ``method``: none for a method that does not train."""
+    cls = get_method(method)
+    return {**TRAIN_SPACE, **cls.search_space} if cls.trains else {}
+
+
+def as_settings(method: str, params: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """Trial parameters (``train.lr``, ``strength``...) as ``--set`` settings by scope."""
+    settings: dict[str, dict[str, Any]] = {}
+    for key, value in params.items():
+        scope, _, name = key.rpartition(".")
+        settings.setdefault(scope or method, {})[name] = value
+    return settings
+
+
+def validation_inputs(curriculum: Curriculum) -> JobInputs:
+    """The tasks with their test splits replaced by validation data: what a trial is scored
+    on. A domain without a validation split gives up the last fifth of its training scenes."""
+    tasks = []
+    for task in curriculum.inputs.tasks:
+        train, val = task.train, task.val
+        if val is None:
+            kept = max(1, math.floor(len(train) * (1 - HOLDOUT)))
+            if kept >= len(train):
+                raise InputError(f"tuning: {task.name} has too few scenes to hold some out")
+            train, val = train.subset(np.arange(kept)), train.subset(np.arange(kept, len(train)))
+        tasks.append(Task(task.name, train, val, val, task.value))
+    return JobInputs(tasks, [])
+
+
+def _sampler(seed: int, method: str, finished: int, trials: int):
+    import optuna
+
+    derived = np.random.SeedSequence([seed, zlib.crc32(method.encode()), finished])
+    return optuna.samplers.TPESampler(
+        seed=int(derived.generate_state(1)[0]), n_startup_trials=max(1, trials // 2)
+    )
+
+
+def _defaults(method: str, space: dict[str, Tunable], base: ExperimentConfig) -> dict[str, Any]:
+    """The values the base configuration gives the searched options: the first trial."""
+    sources = {
+        "train": base.train_config(),
+        "model": base.model_config(),
+        "": base.method(method).options,
+    }
+    out = {}
+    for key in space:
+        scope, _, name = key.rpartition(".")
+        out[key] = getattr(sources[scope], name)
+    return out
+
+
+def run_tuning(
+    tune: TuneConfig, out: Path, execution: Execution | None = None, resume: bool = False
+) -> dict[str, dict[str, Any]]:
+    """Tune every method of ``tune.base`` under ``out``; returns per method its chosen settings
+    (``settings``, by scope), their objective, the defaults' objective and every trial.
+    Also written to ``out/tuning.json``."""
+    import optuna
+    from optuna.distributions import FloatDistribution, IntDistribution
+    from optuna.trial import TrialState
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    execution = execution or Execution()
+    out.mkdir(parents=True, exist_ok=True)
+    storage = tune.storage or f"sqlite:///{(out / 'tuning.db').resolve()}"
+    base = replace(tune.base, seeds=1, record=False)
+    tuned = [m for m in base.methods if search_space(m)]
+    studies = {}
+    for method in tuned:
+        study = optuna.create_study(
+            study_name=method, storage=storage, direction="minimize", load_if_exists=True
+        )
+        for trial in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
+            study.tell(trial.number, state=TrialState.FAIL)  # killed: asked again below
+        studies[method] = study
+
+    def finished(method: str) -> list:
+        return studies[method].get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
+
+    while pending := [m for m in tuned if len(finished(m)) < tune.trials]:
+        asked, planned = [], []
+        for method in pending:
+            space, count = search_space(method), len(finished(method))
+            study = studies[method]
+            study.sampler = _sampler(base.seed, method, count, tune.trials)
+            if count == 0 and not study.get_trials(deepcopy=False, states=(TrialState.WAITING,)):
+                study.enqueue_trial(_defaults(method, space, base))  # the defaults come first
+            distributions = {
+                key: (IntDistribution if s.integer else FloatDistribution)(
+                    int(s.low) if s.integer else s.low,
+                    int(s.high) if s.integer else s.high,
+                    log=s.log,
+                )
+                for key, s in space.items()
+            }
+            trial = study.ask(distributions)
+            settings = layered(base, as_settings(method, trial.params))
+            config = replace(base, methods=(method,), settings=settings)
+            folder = out / "trials" / method / f"trial_{count:03d}"
+            resumed = (folder / "config.json").is_file()  # a trial a killed tuning began
+            label, config, folder, curriculum = plan(
+                f"{method} {count}", config, folder, execution, resumed
+            )
+            curriculum.inputs = validation_inputs(curriculum)
+            asked.append((method, trial))
+            planned.append((label, config, folder, curriculum))
+        done = run_together(planned, execution, resume=True, argv=[])
+        for (method, trial), (metrics, _) in zip(asked, done, strict=True):
+            value = metrics["methods"][method]["final_ade_k1_per_seed"][0]
+            if math.isfinite(value):
+                studies[method].tell(trial, value)
+            else:
+                studies[method].tell(trial, state=TrialState.FAIL)
+    chosen = {m: {"settings": {}, "trials": []} for m in base.methods if m not in tuned}
+    for method in tuned:
+        trials = finished(method)
+        best = min(trials, key=lambda t: (t.value, t.number))
+        chosen[method] = {
+            "settings": as_settings(method, best.params),
+            "objective": best.value,
+            "default_objective": trials[0].value,  # the first finished trial is the defaults
+            "trials": [{"params": t.params, "objective": t.value} for t in trials],
+        }
+    write_text_atomic(out / "tuning.json", json.dumps(chosen, indent=1) + "\n")
+    return chosen

@@ -1,0 +1,114 @@
+"""The fair benchmark: tuning that moves a bad default and cannot see test splits or later
+tasks, and one command that tunes, evaluates, ranks and resumes."""
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from c2inet.errors import InputError
+from sim.bench import main
+from sim.experiment import ExperimentConfig
+from sim.experiment.bench import BenchConfig
+from sim.experiment.config import Execution
+from sim.experiment.jobs import prepare
+from sim.experiment.tuning import TuneConfig, run_tuning, validation_inputs
+
+BAD_LR = 1e-5  # a default that barely trains in two epochs
+
+
+def bench_of(scenario: str) -> BenchConfig:
+    base = ExperimentConfig(
+        scenario,
+        methods=("finetune", "cv"),
+        quick=True,
+        settings={"train": {"lr": BAD_LR}},
+        record=False,
+    )
+    return BenchConfig(base, trials=4)
+
+
+@pytest.fixture(scope="module")
+def tuned(tmp_path_factory) -> dict:
+    root = tmp_path_factory.mktemp("tuning")
+    tuning = bench_of("crowd_noise_0.1,0.2").tuning()
+    return run_tuning(tuning, root / "a", Execution(cache=root / "cache"))
+
+
+def test_tuning_moves_a_bad_default_and_tries_it_first(tuned):
+    finetune = tuned["finetune"]
+    assert [t["params"]["train.lr"] for t in finetune["trials"]][0] == BAD_LR
+    assert len(finetune["trials"]) == 4 and finetune["settings"]["train"]["lr"] != BAD_LR
+    assert finetune["objective"] < finetune["default_objective"]
+    assert tuned["cv"] == {"settings": {}, "trials": []}  # nothing to tune: no trials spent
+
+
+def test_tuning_never_sees_a_test_split_or_a_later_task(tuned, tmp_path):
+    other = bench_of("crowd_noise_0.1,0.5")  # another later task (so other test splits too)
+    assert other.tuning() == bench_of("crowd_noise_0.1,0.2").tuning()
+    again = run_tuning(other.tuning(), tmp_path / "b", Execution(cache=tmp_path / "cache"))
+    assert again == tuned
+    execution = Execution(cache=tmp_path / "cache")
+    curriculum = prepare(replace(other.base, record=False), execution)
+    inputs = validation_inputs(curriculum)
+    for task, original in zip(inputs.tasks, curriculum.inputs.tasks, strict=True):
+        assert task.test is original.val and task.test is not original.test
+
+
+def test_a_domain_without_validation_holds_out_the_end_of_its_training_scenes(tmp_path):
+    curriculum = prepare(
+        ExperimentConfig("eth_ucy_univ", methods=("cv",), quick=True, record=False),
+        Execution(cache=tmp_path / "cache"),
+    )
+    (original,) = curriculum.inputs.tasks
+    assert original.val is None
+    (task,) = validation_inputs(curriculum).tasks
+    assert len(task.train) + len(task.val) == len(original.train)
+    assert len(task.val) == len(original.train) - int(0.8 * len(original.train))
+    kept = original.train.subset(np.arange(len(task.train), len(original.train)))
+    np.testing.assert_array_equal(task.val.positions, kept.positions)
+    assert task.test is task.val
+
+
+def test_the_command_ranks_every_method_and_resumes_to_the_same_leaderboard(tmp_path, capsys):
+    out = tmp_path / "bench"
+    argv = [
+        "--scenario",
+        "crowd_noise_0.1,0.2",
+        "--methods",
+        "finetune,ewc,cv",
+        "--seeds",
+        "2",
+        "--trials",
+        "2",
+        "--quick",
+        "--no-record",
+        "--cache",
+        str(tmp_path / "cache"),
+        "--out",
+        str(out),
+    ]
+    assert main(argv) == 0
+    board = json.loads((out / "leaderboard.json").read_text())
+    assert [e["rank"] for e in board["entries"]] == [1, 2, 3]
+    means = [e["final_ade_k1"]["mean"] for e in board["entries"]]
+    assert means == sorted(means) and board["tune_scenario"] == "crowd_noise_0.1"
+    entry = {e["method"]: e for e in board["entries"]}
+    assert entry["ewc"]["memory_floats"] > 0 == entry["finetune"]["memory_floats"]
+    assert entry["ewc"]["trials"] == entry["finetune"]["trials"] == 2  # the same budget
+    assert "strength" in entry["ewc"]["settings"]["ewc"]
+    assert entry["finetune"]["final_ade_k1"]["p_value"] == 1.0  # the reference against itself
+    for name in ("leaderboard.md", "leaderboard.png", "results.parquet", "tuning/tuning.json"):
+        assert (out / name).stat().st_size > 0
+    assert "| 1 |" in (out / "leaderboard.md").read_text()
+    assert main([*argv, "--resume"]) == 0
+    assert json.loads((out / "leaderboard.json").read_text()) == board
+    capsys.readouterr()
+    assert main(["cubic"]) == 2
+    assert "preset 'cubic': unknown" in capsys.readouterr().err
+
+
+def test_bad_tuning_options_are_refused():
+    with pytest.raises(InputError, match="trials must be at least 1"):
+        TuneConfig(ExperimentConfig("crowd_noise_0.1", methods=("cv",)), trials=0)
