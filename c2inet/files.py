@@ -6,6 +6,7 @@ process never leaves a half-written file under a final name.
 
 from __future__ import annotations
 
+import hashlib
 import os
 import tempfile
 from collections.abc import Callable
@@ -46,3 +47,9 @@ def writable_folder(path: Path, option: str) -> Path:
     if not os.access(path, os.W_OK | os.X_OK):
         raise InputError(f"{option} {path}: not writable")
     return path
+
+
+def file_digest(path: Path) -> str:
+    """The SHA-256 of a file's bytes, in hex: what a run records to know a file is unchanged."""
+    with path.open("rb") as file:
+        return hashlib.file_digest(file, "sha256").hexdigest()

@@ -8,6 +8,7 @@ except by methods that declare ``sees_old_tasks`` (the joint reference).
 from __future__ import annotations
 
 import itertools
+import json
 import zlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -21,7 +22,7 @@ from c2inet.batch import batches
 from c2inet.data import Windows
 from c2inet.diagnostics import diagnose
 from c2inet.errors import InputError
-from c2inet.files import write_atomic
+from c2inet.files import file_digest, write_atomic, write_text_atomic
 from c2inet.methods.base import Method, TaskContext
 from c2inet.metrics import POINT_DRAWS, evaluate_predictions
 from c2inet.options import Tunable, require
@@ -190,9 +191,11 @@ class ContinualTrainer:
         checkpoint_dir: Path | None = None,
         observers: list[Observer] | None = None,
         progress: Callable[[Any], Any] | None = None,
+        identity: str = "",
     ):
         self.method, self.tasks, self.config = method, tasks, config
         self.checkpoint_dir = checkpoint_dir
+        self.identity = identity  # what the checkpoints belong to (the job, its options, its data)
         self.observers = observers or []
         self.progress = progress or (lambda iterable, **_: iterable)
         self.history: list[dict[str, Any]] = []
@@ -259,11 +262,45 @@ class ContinualTrainer:
         return self.checkpoint_dir / f"task_{index:02d}.pt"
 
     def checkpoints(self) -> list[Path]:
-        """The task checkpoints in ``checkpoint_dir``: task 0, 1, ... up to the first gap."""
+        """The verified task checkpoints in ``checkpoint_dir``: task 0, 1, ... up to the first
+        one the manifest does not list (a kill between the two writes), each checked against
+        its SHA-256, and all of them against this trainer's ``identity``."""
         if self.checkpoint_dir is None:
             return []
-        paths = (self._checkpoint(i) for i in range(len(self.tasks)))
-        return list(itertools.takewhile(Path.exists, paths))
+        paths = list(
+            itertools.takewhile(Path.exists, map(self._checkpoint, range(len(self.tasks))))
+        )
+        if not paths:
+            return []
+        if not (self.checkpoint_dir / MANIFEST).exists():
+            return []  # killed before its first manifest, or an earlier version's: retrain
+        manifest = self._manifest()
+        if manifest.get("identity") != self.identity:
+            raise InputError(
+                f"--resume: {self.checkpoint_dir} holds checkpoints of another job, other options "
+                "or other data; delete the folder to retrain that job, or use --overwrite"
+            )
+        listed = list(itertools.takewhile(lambda p: p.name in manifest["sha256"], paths))
+        for path in listed:
+            if file_digest(path) != manifest["sha256"][path.name]:
+                raise InputError(
+                    f"--resume: checkpoint {path} is damaged (its SHA-256 differs from the "
+                    "manifest's); delete it to retrain from the task before, or use --overwrite"
+                )
+        return listed
+
+    def _manifest(self) -> dict[str, Any]:
+        path = self.checkpoint_dir / MANIFEST
+        try:
+            manifest = json.loads(path.read_text())
+            if not isinstance(manifest, dict) or not isinstance(manifest.get("sha256"), dict):
+                raise ValueError("no sha256 table")
+        except (OSError, ValueError) as error:
+            raise InputError(
+                f"--resume: {path} is damaged ({type(error).__name__}); delete "
+                f"{self.checkpoint_dir} to retrain that job, or use --overwrite"
+            ) from None
+        return manifest
 
     def _replay(self, model, optimiser, rng: np.random.Generator, result: Result) -> int:
         """Restore the state after the last finished task and return the next task's index.
@@ -333,9 +370,16 @@ class ContinualTrainer:
             "diagnostics": list(result.diagnostics),
             "history": list(self.history),
         }
-        write_atomic(self._checkpoint(index), lambda tmp: torch.save(state, tmp))
+        path = self._checkpoint(index)
+        write_atomic(path, lambda tmp: torch.save(state, tmp))
+        fresh = index == 0 or not (self.checkpoint_dir / MANIFEST).exists()
+        digests = {} if fresh else self._manifest()["sha256"]
+        digests = {name: d for name, d in digests.items() if name < path.name}
+        manifest = {"identity": self.identity, "sha256": {**digests, path.name: file_digest(path)}}
+        write_text_atomic(self.checkpoint_dir / MANIFEST, json.dumps(manifest, indent=1) + "\n")
 
 
+MANIFEST = "manifest.json"  # beside the checkpoints: the job's identity and their SHA-256
 CHECKPOINT_KEYS = {"task", "model", "optimiser", "method", "torch_rng", "numpy_rng", "matrices"}
 
 

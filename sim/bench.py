@@ -43,6 +43,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument(
         "--trials", type=bounded_int(1, 1000), default=6, help="tuning trials per method (6)"
     )
+    p.add_argument(
+        "--replay-budget",
+        type=bounded_int(1, 1_000_000),
+        metavar="SCENES",
+        help="give every replay method (coresets, A-GEM, DER++) this many scenes in all",
+    )
     p.add_argument("--tune-scenario", help="the tuning curriculum (default: the preset's)")
     p.add_argument("--storage", help="an Optuna storage URL shared by trials (default: SQLite)")
     p.add_argument("--out", type=Path, help="the benchmark's folder (default bench/PRESET)")
@@ -62,7 +68,7 @@ def main(argv: list[str] | None = None) -> int:
         tune_scenario = tune_scenario or preset.tune_scenario
     out = args.out or Path("bench") / (args.preset or "custom")
     base = ExperimentConfig(args.scenario, **experiment_options(args))
-    bench = BenchConfig(base, tune_scenario, args.trials, args.storage)
+    bench = BenchConfig(base, tune_scenario, args.trials, args.storage, args.replay_budget)
     try:
         board = run_bench(
             bench, out, execution_of(args), args.resume, args.overwrite, [*p.prog.split(), *argv]

@@ -7,6 +7,8 @@ scenario, seed, and per domain its knobs, split sizes, realised statistics and c
 from __future__ import annotations
 
 import json
+import re
+import shutil
 import sys
 from pathlib import Path
 
@@ -52,6 +54,42 @@ WRITERS = {
 }
 
 
+def clear_output(out: Path, overwrite: bool) -> None:
+    """Never overwrite silently: an empty or new ``out`` is used as it is; with ``overwrite``,
+    a folder an earlier generate wrote (its ``summary.json`` lists its domains) loses exactly
+    those files; anything else is refused, so nothing this command did not write is touched."""
+    if not out.is_dir() or not any(out.iterdir()):
+        return
+    if not overwrite:
+        raise InputError(f"--out {out}: not empty; add --overwrite to replace an earlier generate")
+    try:
+        summary = json.loads((out / "summary.json").read_text())
+        names = [d["name"] for d in summary["domains"]]
+        if not all(isinstance(n, str) and DOMAIN_NAME.fullmatch(n) for n in names):
+            raise ValueError("a domain name that no domain of ours has")
+        written = [WRITTEN[summary["format"]](out, name) for name in names]
+    except (OSError, ValueError, KeyError, TypeError):
+        raise InputError(
+            f"--overwrite: {out} holds no output of sim.generate (no readable summary.json), so "
+            "nothing is removed; choose another --out"
+        ) from None
+    for path in written:
+        if path.is_dir():
+            shutil.rmtree(path)
+        elif path.exists():
+            path.unlink()
+    (out / "summary.json").unlink()
+
+
+WRITTEN = {  # what each writer leaves for a domain: a file or a folder of its own
+    "parquet": lambda out, name: out / f"{name}.parquet",
+    "ethucy": lambda out, name: out / name,
+    "npz": lambda out, name: out / name,
+}
+DOMAIN_NAME = re.compile(r"[a-z0-9][a-z0-9_.-]*")  # FAMILY_VALUE: never a path, never '..'
+
+
+
 @guarded
 def main(argv: list[str] | None = None) -> int:
     examples = (
@@ -64,6 +102,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument(
         "--set", action="append", default=[], metavar="data.KNOB=VALUE", help="override a knob"
     )
+    p.add_argument(
+        "--overwrite", action="store_true", help="replace what an earlier generate wrote in --out"
+    )
     add_workers(p)
     args = parse(p, sys.argv[1:] if argv is None else argv)
     if args is None:
@@ -74,6 +115,7 @@ def main(argv: list[str] | None = None) -> int:
     for scope in set(settings) - {"data"}:
         raise InputError(f"--set {scope}.*: generate takes only data.KNOB=VALUE")
     curriculum = parse_scenario(args.scenario, args.scenarios_dir, settings.get("data"))
+    clear_output(args.out, args.overwrite)
     writable_folder(args.out, "--out")
     domains = []
     for spec in tqdm(curriculum, desc="domains", unit="domain", file=sys.stderr):

@@ -128,6 +128,12 @@ class Method:
         """Extra per-task figures for the report (e.g. the queue size)."""
         return {}
 
+    @classmethod
+    def replay_options(cls, scenes: int, tasks: int) -> dict[str, Any]:
+        """The options that give a replay method a memory of ``scenes`` scenes in all after
+        ``tasks`` tasks (an equal budget for every replay method); none for the others."""
+        return {}
+
     def memory_floats(self, model: torch.nn.Module) -> int:
         """How many floating-point numbers the method keeps between tasks besides the model
         (buffers, anchors, Fisher, old parameters, the queue): what :meth:`state_dict` holds."""

@@ -31,6 +31,11 @@ class Coresets(Method):
         super().__init__(model_config, options)
         self.buffer: list[Windows] = []
 
+    @classmethod
+    def replay_options(cls, scenes: int, tasks: int) -> dict[str, Any]:
+        """The last task replays what the ``tasks - 1`` before it kept: ``scenes`` in all."""
+        return {"per_task": max(1, scenes // max(1, tasks - 1))}
+
     def training_windows(self, ctx: TaskContext) -> Windows:
         return Windows.concat([ctx.train, *self.buffer])
 

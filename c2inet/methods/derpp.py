@@ -43,6 +43,10 @@ class DERPP(Method):
     Options = DERPPOptions
     inert = {"alpha": 0.0, "beta": 0.0}
 
+    @classmethod
+    def replay_options(cls, scenes: int, tasks: int) -> dict[str, Any]:
+        return {"buffer": scenes}  # one reservoir over the whole stream
+
     def __init__(self, model_config, options: dict[str, Any] | None = None):
         super().__init__(model_config, options)
         self.scenes: list[torch.Tensor] = []  # (agents, 20, 2) positions of each stored scene

@@ -18,7 +18,9 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from c2inet.errors import InputError
 from c2inet.files import write_atomic, write_text_atomic
+from c2inet.methods.base import get_method
 from c2inet.report import REFERENCE, compare, comparison_rows, markdown_table
 from c2inet.significance import ALPHA
 from sim.experiment.config import Execution, ExperimentConfig
@@ -76,6 +78,20 @@ class BenchConfig:
     tune_scenario: str | None = None
     trials: int = 6
     storage: str | None = None
+    replay_budget: int | None = None  # scenes every replay method keeps in all (None: defaults)
+
+    def __post_init__(self):
+        if self.replay_budget is None:
+            return
+        if self.replay_budget < 1:
+            raise InputError(f"replay budget must be at least 1 scene, got {self.replay_budget}")
+        tasks = len(self.base.specs)
+        settings = dict(self.base.settings)
+        for name in self.base.methods:
+            options = get_method(name).replay_options(self.replay_budget, tasks)
+            if options:
+                settings[name] = {**settings.get(name, {}), **options}
+        object.__setattr__(self, "base", replace(self.base, settings=settings))
 
     def tuning(self) -> TuneConfig:
         first = self.base.specs[0]
@@ -87,6 +103,7 @@ class BenchConfig:
             "base": self.base.to_json(),
             "tune_scenario": self.tune_scenario,
             "trials": self.trials,
+            "replay_budget": self.replay_budget,
         }
 
 
@@ -156,6 +173,7 @@ def leaderboard(
         "scenario": base.scenario,
         "tune_scenario": bench.tuning().base.scenario,
         "trials": bench.trials,
+        "replay_budget": bench.replay_budget,
         "seeds": base.seeds,
         "quick": base.quick,
         "reference": REFERENCE,
@@ -189,7 +207,12 @@ def leaderboard_markdown(board: dict[str, Any]) -> str:
             "average ADE of the point prediction (K = 1: the mean of sampled futures). Intervals "
             f"are 95 %; p is a paired t-test against {board['reference']} over the same seeds, "
             f"`*` below {board['alpha']}; a difference whose interval holds 0 is within the seed "
-            "spread. Memory: floats a method keeps between tasks besides the model.",
+            "spread. Memory: floats a method keeps between tasks besides the model."
+            + (
+                f" Every replay method keeps {board['replay_budget']} scenes in all."
+                if board.get("replay_budget")
+                else ""
+            ),
             "",
             "Point prediction (K = 1):",
             "",

@@ -7,6 +7,7 @@ jobs (``sim.experiment.backends``) and give the same numbers.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import sys
@@ -67,8 +68,9 @@ class JobResult:
     predictions: dict[str, np.ndarray] = field(default_factory=dict)  # task -> (K, A, T, 2)
     cpu_seconds: float | None = None  # the job's training and evaluation (after a resume: its rest)
 
-    def save(self, folder: Path) -> None:
-        """``predictions.npz``, then ``result.json``, whose presence marks the job finished."""
+    def save(self, folder: Path, identity: str = "") -> None:
+        """``predictions.npz``, then ``result.json``, whose presence marks the job finished;
+        it carries the job's ``identity`` and the SHA-256 of its own content."""
 
         def write_predictions(tmp: Path) -> None:
             with tmp.open("wb") as file:  # a file object: np.savez would append .npz to a name
@@ -84,16 +86,24 @@ class JobResult:
             "history": r.history,
             "diagnostics": r.diagnostics,
             "cpu_seconds": self.cpu_seconds,
+            "identity": identity,
         }
-        write_text_atomic(folder / "result.json", json.dumps(data) + "\n")
+        text = json.dumps(data)
+        signed = {**data, "sha256": hashlib.sha256(text.encode()).hexdigest()}
+        write_text_atomic(folder / "result.json", json.dumps(signed) + "\n")
 
     @staticmethod
-    def load(job: Job, folder: Path) -> JobResult:
-        """Read a finished job back; a damaged or foreign file is one :class:`InputError`
-        naming it and the way out."""
+    def load(job: Job, folder: Path, identity: str = "") -> JobResult:
+        """Read a finished job back; a damaged or foreign file, or one of another job, other
+        options or other data (its ``identity``), is one :class:`InputError` naming it and the
+        way out."""
         path = folder / "result.json"
         try:
             data = json.loads(path.read_text())
+            digest = data.pop("sha256")
+            if hashlib.sha256(json.dumps(data).encode()).hexdigest() != digest:
+                raise ValueError("its SHA-256 differs")
+            owner = data.pop("identity")
             matrices = {m: np.array(v, dtype=float) for m, v in data.pop("matrices").items()}
             cpu_seconds = data.pop("cpu_seconds", None)  # absent in results of older versions
             result = Result(matrices=matrices, **data)
@@ -114,6 +124,11 @@ class JobResult:
                 f"--resume: {path} is damaged or not this project's ({type(error).__name__}); "
                 f"delete {folder} to run that job again, or use --overwrite"
             ) from None
+        if owner != identity:
+            raise InputError(
+                f"--resume: {folder / 'result.json'} is the result of another job, other options "
+                f"or other data; delete {folder} to run that job again, or use --overwrite"
+            )
         return JobResult(job, result, predictions, cpu_seconds)
 
 
@@ -141,8 +156,9 @@ def run_job(
     """
     torch.set_num_threads(threads)
     folder = job.folder(out)
+    identity = job_identity(job, config, inputs)
     if resume and (folder / "result.json").exists():
-        return JobResult.load(job, folder)
+        return JobResult.load(job, folder, identity)
     observers = [] if on_event is None else [on_event]
     names = [t.name for t in inputs.tasks]
     logs = make_loggers(loggers, folder, config.epochs, names)
@@ -169,6 +185,7 @@ def run_job(
         checkpoint_dir=folder / "checkpoints",
         observers=observers,
         progress=None if on_event is None else _epoch_bar,
+        identity=identity,
     )
     started = time.process_time()
     result = JobResult(job, trainer.run(resume=resume))
@@ -180,8 +197,23 @@ def run_job(
         if partial is not None:
             os.replace(partial, folder / "recording.rrd")
         result.predictions = drawing.final_predictions
-    result.save(folder)
+    result.save(folder, identity)
     return result
+
+
+def job_identity(job: Job, config: ExperimentConfig, inputs: JobInputs) -> str:
+    """The SHA-256 of all a job's numbers depend on: its method and seed, the experiment's
+    configuration and every task's data. Its checkpoints and result carry it, so a resume
+    never mixes in the work of another job, other options or changed data files."""
+    what = {"job": [job.method, job.seed_index], "config": config.to_json()}
+    digest = hashlib.sha256(json.dumps(what, sort_keys=True, default=str).encode())
+    for task in inputs.tasks:
+        digest.update(task.name.encode())
+        for split in (task.train, task.val, task.test):
+            if split is not None:
+                digest.update(split.positions.tobytes())
+                digest.update(split.scene_start.tobytes())
+    return digest.hexdigest()
 
 
 def _epoch_bar(iterable, **options):

@@ -214,3 +214,23 @@ def test_memory_counts_what_each_method_keeps_between_tasks():
     assert memory["ewc"][-1] >= 2 * parameters  # a Fisher and an anchor per parameter
     train = [t.train.positions.size for t in tasks]
     assert memory["joint"] == [train[0], train[0] + train[1], sum(train)]  # every task's data
+
+
+def test_joint_from_scratch_restarts_every_task_from_the_initial_weights():
+    method, scratch, _ = trained("joint-scratch")
+    _, warm, _ = trained("joint")
+    assert not np.array_equal(scratch.matrices["ade"][1], warm.matrices["ade"][1])
+    model = method.build_model()
+    ctx = TaskContext(
+        1,
+        "t",
+        turning_tasks()[1].train,
+        model,
+        torch.optim.Adam(model.parameters()),
+        np.random.default_rng(0),
+    )
+    for p in model.parameters():
+        p.data.add_(1.0)  # as if trained
+    method.before_task(ctx)
+    restored = model.state_dict()
+    assert all(torch.equal(restored[k], v) for k, v in method.initial.items())

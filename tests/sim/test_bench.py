@@ -109,6 +109,20 @@ def test_the_command_ranks_every_method_and_resumes_to_the_same_leaderboard(tmp_
     assert "preset 'cubic': unknown" in capsys.readouterr().err
 
 
+def test_a_replay_budget_gives_every_replay_method_the_same_scenes():
+    base = ExperimentConfig(
+        "crowd_noise_0.1..0.4", methods=("coresets", "agem", "derpp", "finetune"), quick=True
+    )
+    settings = BenchConfig(base, replay_budget=60).base.settings
+    assert settings == {
+        "coresets": {"per_task": 20},  # 3 earlier tasks x 20 replayed at the last task
+        "agem": {"per_task": 20},
+        "derpp": {"buffer": 60},
+    }
+    with pytest.raises(InputError, match="replay budget"):
+        BenchConfig(base, replay_budget=0)
+
+
 def test_bad_tuning_options_are_refused():
     with pytest.raises(InputError, match="trials must be at least 1"):
         TuneConfig(ExperimentConfig("crowd_noise_0.1", methods=("cv",)), trials=0)

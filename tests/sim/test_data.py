@@ -75,6 +75,29 @@ def test_generate_takes_data_settings_and_refuses_other_scopes(tmp_path, family_
     assert done.returncode == 2 and "generate takes only data.KNOB" in done.stderr
 
 
+@pytest.mark.parametrize("fmt", ["parquet", "npz"])
+def test_generate_never_overwrites_silently_and_replaces_only_its_own_files(
+    tmp_path, family_dir, fmt, capsys
+):
+    from sim.generate import main
+
+    out = tmp_path / "out"
+    common = ["--scenarios-dir", str(family_dir), "--out", str(out), "--format", fmt]
+    assert main(["--scenario", "tiny_noise_0.1,0.2", *common]) == 0
+    (out / "notes.txt").write_text("mine")
+    assert main(["--scenario", "tiny_noise_0.3", *common]) == 2
+    assert "not empty; add --overwrite" in capsys.readouterr().err
+    assert main(["--scenario", "tiny_noise_0.3", *common, "--overwrite"]) == 0
+    left = sorted(p.name for p in out.iterdir())
+    assert left == sorted(
+        ["notes.txt", "summary.json", "tiny_noise_0.3" + (".parquet" if fmt == "parquet" else "")]
+    )
+    (out / "summary.json").write_text('{"format": "npz", "domains": [{"name": "../x"}]}')
+    assert main(["--scenario", "tiny_noise_0.3", *common, "--overwrite"]) == 2
+    assert "holds no output of sim.generate" in capsys.readouterr().err
+    assert (out / "notes.txt").read_text() == "mine"
+
+
 @pytest.mark.parametrize("fmt", ["parquet", "ethucy", "npz"])
 def test_generate_is_byte_identical_for_a_seed_and_differs_for_another(tmp_path, family_dir, fmt):
     outs = []
@@ -112,11 +135,11 @@ def test_summary_json_contract(tmp_path, family_dir):
         "--scenarios-dir",
         str(family_dir),
         "--out",
-        str(tmp_path),
+        str(tmp_path / "out"),
     )
     assert result.returncode == 0, result.stderr
     assert "tiny_noise_0.3" in result.stdout and "heading_change" in result.stdout
-    summary = json.loads((tmp_path / "summary.json").read_text())
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["scenario"] == "tiny_noise_0.1..0.3" and summary["seed"] == 0
     assert [d["name"] for d in summary["domains"]] == [
         "tiny_noise_0.1",

@@ -5,12 +5,14 @@ Every check compares ``metrics.json`` byte for byte with an uninterrupted run's.
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from c2inet.errors import InputError
@@ -274,15 +276,101 @@ def test_the_cache_must_be_a_writable_folder(tmp_path):
 )
 def test_a_damaged_finished_job_is_one_line_naming_the_file(tmp_path, damage, message):
     """Issue 26, item 3: a damaged result.json or predictions.npz was a traceback."""
+    from c2inet.trainer import Result
     from sim.experiment import Job
     from sim.experiment.jobs import JobResult
 
     job = tmp_path / "jobs" / "cv" / "seed_0"
     job.mkdir(parents=True)
-    (job / "result.json").write_text('{"tasks": [], "matrices": {}}')
+    JobResult(Job("cv", 0), Result([], {})).save(job, identity="cv")
     damage(job)
     with pytest.raises(InputError, match=message):
-        JobResult.load(Job("cv", 0), job)
+        JobResult.load(Job("cv", 0), job, identity="cv")
+
+
+def tampered(reference, tmp_path, tamper) -> Path:
+    """A copy of the reference run with one change made by ``tamper(jobs folder)``."""
+    out = tmp_path / "run"
+    shutil.copytree(reference[0], out, ignore=shutil.ignore_patterns(".lock"))
+    tamper(out / "jobs")
+    return out
+
+
+def redo(job: Path) -> Path:
+    """Make a finished job unfinished, so that a resume continues from its checkpoints."""
+    (job / "result.json").unlink()
+    return job / "checkpoints"
+
+
+def flip_a_byte(path: Path) -> None:
+    data = bytearray(path.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    path.write_bytes(bytes(data))
+
+
+def doubled_number(job: Path) -> None:
+    result = json.loads((job / "result.json").read_text())
+    result["matrices"]["ade"][0][0] *= 2
+    (job / "result.json").write_text(json.dumps(result))
+
+
+@pytest.mark.parametrize(
+    ("tamper", "message"),
+    [
+        (lambda jobs: flip_a_byte(redo(jobs / "finetune/seed_0") / "task_01.pt"), "task_01.pt is"),
+        (lambda jobs: doubled_number(jobs / "finetune/seed_0"), "result.json is damaged"),
+        (
+            lambda jobs: shutil.copy(
+                jobs / "c2inet-online/seed_0/result.json", jobs / "finetune/seed_0"
+            ),
+            "result of another job",
+        ),
+        (
+            lambda jobs: shutil.copytree(
+                redo(jobs / "c2inet-online/seed_0"),
+                redo(jobs / "finetune/seed_0"),
+                dirs_exist_ok=True,
+            ),
+            "checkpoints of another job",
+        ),
+    ],
+    ids=["checkpoint byte", "result number", "foreign result", "foreign checkpoints"],
+)
+def test_resume_refuses_damaged_or_foreign_work(tmp_path, reference, tamper, message):
+    """Issue 26, item 2: each of these resumed with exit 0 and other metrics."""
+    out = tampered(reference, tmp_path, tamper)
+    config = ExperimentConfig(
+        "crowd_noise_0.1..0.3", methods=("c2inet-online", "finetune"), quick=True, epochs=4
+    )
+    with pytest.raises(InputError, match=message):
+        run_experiment(config, out, Execution(cache=reference[2]), resume=True)
+
+
+def test_a_job_identity_follows_its_data_options_method_and_seed():
+    from c2inet.data import Windows
+    from c2inet.trainer import Task
+    from sim.experiment import Job
+    from sim.experiment.curriculum import JobInputs
+    from sim.experiment.jobs import job_identity
+
+    def inputs(shift: float) -> JobInputs:
+        windows = Windows(np.zeros((2, 20, 2)) + shift, np.array([0, 1, 2]))
+        return JobInputs([Task("a", windows, None, windows)], [])
+
+    config = ExperimentConfig("crowd_noise_0.1", methods=("finetune", "cv"), quick=True)
+    same = job_identity(Job("finetune", 0), config, inputs(0.0))
+    assert same == job_identity(Job("finetune", 0), config, inputs(0.0))
+    others = [
+        job_identity(Job("finetune", 0), config, inputs(1e-9)),  # a data file changed
+        job_identity(Job("finetune", 1), config, inputs(0.0)),
+        job_identity(Job("cv", 0), config, inputs(0.0)),
+        job_identity(
+            Job("finetune", 0),
+            ExperimentConfig("crowd_noise_0.1", quick=True, epochs=3),
+            inputs(0.0),
+        ),
+    ]
+    assert same not in others and len(set(others)) == len(others)
 
 
 def test_a_damaged_or_foreign_checkpoint_is_one_line_naming_it(tmp_path):

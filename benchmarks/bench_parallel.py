@@ -1,0 +1,95 @@
+"""How much faster is the fair benchmark with 2 jobs at once than with 1, and where does its
+time go?
+
+Runs ``sim.bench`` on a reduced preset (``crowd_noise_0.1..0.3`` at the default sizes but
+``--epochs 2``; fine-tune, EWC, DER++ and C2INet-online; 3 tuning trials and 3 seeds a method,
+so 24 jobs) with ``--jobs 1`` and ``--jobs 2``, interleaved, the domains already in the cache,
+one torch thread per job. Prints the wall times side by side, the speed-up, the CPU seconds of
+the tuning and the evaluation jobs (from their ``result.json``), and checks that the two
+leaderboards are identical.
+
+    python benchmarks/bench_parallel.py [--rounds 1] [--epochs 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+SCENARIO = "crowd_noise_0.1..0.3"
+METHODS = "finetune,ewc,derpp,c2inet-online"
+
+
+def timed_bench(jobs: int, epochs: int, out: Path, cache: Path) -> float:
+    command = [sys.executable, "-m", "sim.bench", "--scenario", SCENARIO, "--methods", METHODS]
+    command += ["--trials", "3", "--seeds", "3", "--epochs", str(epochs), "--no-record"]
+    command += ["--jobs", str(jobs), "--cache", str(cache), "--out", str(out)]
+    start = time.perf_counter()
+    subprocess.run(command, check=True, capture_output=True)
+    return time.perf_counter() - start
+
+
+def cpu_seconds(folder: Path) -> float:
+    return sum(
+        json.loads(p.read_text()).get("cpu_seconds") or 0.0 for p in folder.rglob("result.json")
+    )
+
+
+def ranking(out: Path) -> list[dict]:
+    """The leaderboard's entries but their CPU seconds (which vary from run to run)."""
+    entries = json.loads((out / "leaderboard.json").read_text())["entries"]
+    return [{k: v for k, v in e.items() if k != "cpu_seconds"} for e in entries]
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--rounds", type=int, default=1)
+    p.add_argument("--epochs", type=int, default=2)
+    args = p.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        root, cache = Path(tmp), Path(".cache/domains")
+        subprocess.run(  # the domains into the cache
+            [
+                sys.executable,
+                "-m",
+                "sim.run",
+                "--scenario",
+                SCENARIO,
+                "--methods",
+                "cv",
+                "--no-record",
+                "--cache",
+                str(cache),
+                "--out",
+                str(root / "warm-run"),
+            ],
+            check=True,
+            capture_output=True,
+        )
+        best: dict[int, float] = {}
+        for round_ in range(args.rounds):
+            for jobs in (1, 2):
+                out = root / f"{round_}-{jobs}"
+                seconds = timed_bench(jobs, args.epochs, out, cache)
+                best[jobs] = min(best.get(jobs, seconds), seconds)
+                assert ranking(out) == ranking(root / "0-1"), "the leaderboards differ"
+        first = root / "0-1"
+        tuning, evaluation = cpu_seconds(first / "tuning"), cpu_seconds(first / "evaluation")
+    print(
+        f"{'reduced benchmark (24 jobs)':32s} {'--jobs 1':>10s} {'--jobs 2':>10s} {'speed-up':>9s}"
+    )
+    print(f"{'wall':32s} {best[1]:9.1f}s {best[2]:9.1f}s {best[1] / best[2]:8.2f}x")
+    print(
+        f"job CPU: tuning {tuning:.0f} s, evaluation {evaluation:.0f} s; the rest of --jobs 1's "
+        f"wall is start-up, data and outputs: {best[1] - tuning - evaluation:.0f} s"
+    )
+    print("leaderboard.json identical for --jobs 1 and 2 (but the CPU seconds)")
+
+
+if __name__ == "__main__":
+    main()
