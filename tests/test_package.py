@@ -1,12 +1,21 @@
-"""The project as a user installs it: a wheel, in a fresh virtual environment, used from a folder
-that is not the clone. The families and the real data ship inside the package."""
+"""The project as a user installs it: every import a declared dependency, and a wheel in a
+fresh virtual environment, used from a folder that is not the clone, with the families and the
+real data inside the package."""
 
+import ast
+import importlib.metadata
+import re
 import subprocess
 import sys
+import sysconfig
+import tomllib
 import zipfile
 from pathlib import Path
 
 ROOT = Path(__file__).parents[1]
+
+
+PURELIB = "import sysconfig; print(sysconfig.get_path('purelib'))"
 
 
 def run(*command, **options) -> subprocess.CompletedProcess:
@@ -17,7 +26,61 @@ def run(*command, **options) -> subprocess.CompletedProcess:
     return done
 
 
+def distribution(requirement: str) -> str:
+    return re.split(r"[<>=!~\[ ;]", requirement, maxsplit=1)[0].lower().replace("_", "-")
+
+
+EXTRA_MODULES = {"sim/fuzz.py": "hypothesis"}  # a module that is all about an extra's package
+
+
+def test_every_import_of_the_package_is_a_declared_dependency():
+    """What a fresh install must bring: a module-level import of a third-party package needs it
+    in ``dependencies``; an optional extra (ray, tensorboard) may only be imported inside a
+    function. Test-only packages count as neither (but in the fuzz targets, whose docstring says
+    they need the ``test`` extra's hypothesis)."""
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    required = {distribution(r) for r in project["dependencies"]}
+    extras = {
+        distribution(r)
+        for k, rs in project["optional-dependencies"].items()
+        if k != "test"
+        for r in rs
+    }
+    owners = importlib.metadata.packages_distributions()
+    ours = {"sim", "c2inet", "viz"}
+    wrong = []
+    for path in sorted(p for package in ours for p in (ROOT / package).rglob("*.py")):
+        tree = ast.parse(path.read_text())
+        in_functions = {
+            id(inner)
+            for node in ast.walk(tree)
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef)
+            for inner in ast.walk(node)
+        }
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0:
+                names = [node.module]
+            else:
+                continue
+            for name in (n.split(".")[0] for n in names):
+                if name in ours or name in sys.stdlib_module_names or name == "__future__":
+                    continue
+                declared = {d.lower() for d in owners.get(name, [name])}
+                at_module_level = id(node) not in in_functions
+                if declared & required or (declared & extras and not at_module_level):
+                    continue
+                if EXTRA_MODULES.get(str(path.relative_to(ROOT))) in declared:
+                    continue
+                wrong.append(f"{path.relative_to(ROOT)}: {name}")
+    assert not wrong, f"imports of undeclared packages: {wrong}"
+
+
 def test_a_wheel_in_a_fresh_environment_generates_domains_anywhere(tmp_path, monkeypatch):
+    """The wheel's own files and console scripts, from another folder. Its dependencies come
+    from this environment (a path file; installing them again would copy 2 GB): CI's own
+    install resolves them from scratch, and the test above proves they are declared."""
     monkeypatch.setenv("PIP_CACHE_DIR", str(tmp_path / "pip-cache"))  # nothing written in ~
     run(sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", tmp_path / "dist", ROOT)
     (wheel,) = (tmp_path / "dist").glob("c2i_testbed-*.whl")
@@ -29,7 +92,12 @@ def test_a_wheel_in_a_fresh_environment_generates_domains_anywhere(tmp_path, mon
     venv = tmp_path / "venv"
     run(sys.executable, "-m", "venv", venv)
     pip = (venv / "bin" / "python", "-m", "pip", "install", "-q", "--disable-pip-version-check")
-    run(*pip, "--no-compile", wheel)  # no .pyc of every dependency up front: half the time
+    site = Path(sysconfig.get_path("purelib"))  # this environment's packages, ours excepted
+    fresh = Path(run(venv / "bin" / "python", "-c", PURELIB).stdout.strip())
+    (fresh / "dependencies.pth").write_text(f"{site}\n")
+    run(*pip, "--no-deps", "--no-compile", wheel)
+    where = run(venv / "bin" / "python", "-c", "import sim; print(sim.__file__)", cwd=tmp_path)
+    assert Path(where.stdout.strip()).is_relative_to(fresh)  # the wheel's copy, not the clone
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
     listed = run(venv / "bin" / "c2i-run", "--list", "families", cwd=elsewhere)

@@ -79,6 +79,7 @@ def test_quick_run_writes_every_output(tmp_path):
     assert card["git_commit"] is None or len(card["git_commit"]) >= 40
     checkpoints = out / "jobs" / "finetune" / "seed_0" / "checkpoints"
     assert sorted(p.name for p in checkpoints.iterdir()) == [
+        "manifest.json",  # the job's identity and each checkpoint's SHA-256
         "task_00.pt",
         "task_01.pt",
         "task_02.pt",
