@@ -89,7 +89,6 @@ WRITTEN = {  # what each writer leaves for a domain: a file or a folder of its o
 DOMAIN_NAME = re.compile(r"[a-z0-9][a-z0-9_.-]*")  # FAMILY_VALUE: never a path, never '..'
 
 
-
 @guarded
 def main(argv: list[str] | None = None) -> int:
     examples = (
