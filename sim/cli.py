@@ -44,7 +44,9 @@ def parser(
         metavar="WHAT",
         help="print what exists and stop: families, methods, or knobs FAMILY",
     )
-    p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
+    p.add_argument(
+        "--seed", type=bounded_int(0, 2**63 - 1), default=0, help="root seed (default 0)"
+    )
     p.add_argument(
         "--scenarios-dir",
         type=Path,

@@ -63,6 +63,9 @@ class ActiveOptions:
                 f"strategies: {unknown[0] if unknown else 'none given'!r} is not one of "
                 f"{', '.join(STRATEGIES)}"
             )
+        twice = sorted({s for s in self.strategies if self.strategies.count(s) > 1})
+        if twice:
+            raise InputError(f"strategies: {twice[0]!r} is named twice; name each once")
 
 
 def grid_specs(config: ExperimentConfig) -> list[DomainSpec]:

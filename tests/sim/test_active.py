@@ -57,3 +57,15 @@ def test_bad_input_is_one_error_line(tmp_path, capsys, argv, message):
     assert main(["active", *argv, "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize(
+    ("strategies", "message"),
+    [(("error", "error"), "named twice"), (("guess",), "not one of"), ((), "none given")],
+)
+def test_strategies_are_named_once_each_from_the_known_ones(strategies, message):
+    """Issue 26, item 12: ``--strategies error,error`` ran the same strategy twice."""
+    from c2inet.errors import InputError
+
+    with pytest.raises(InputError, match=message):
+        active.ActiveOptions(strategies=strategies)
