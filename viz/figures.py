@@ -341,6 +341,8 @@ def leaderboard_figure(board: dict[str, Any], path: Path) -> None:
     entries = board["entries"]
     names = [e["method"] for e in entries]
     rows = np.arange(len(entries))
+    bases = sorted({name.split(",")[0] for name in names})  # a method's test rules share its colour
+    reference = next((e for e in entries if e["method"] == board["reference"]), None)
     fig, axes = plt.subplots(1, 2, figsize=(11, 0.35 * len(entries) + 1.6), sharey=True)
     for ax, key, title in (
         (axes[0], "final_ade_k1", "final average ADE, K = 1 (m)"),
@@ -348,7 +350,7 @@ def leaderboard_figure(board: dict[str, Any], path: Path) -> None:
     ):
         for row, e in zip(rows, entries, strict=True):
             mean, bounds = e[key]["mean"], e[key]["interval"] or [e[key]["mean"]] * 2
-            colour = as_matplotlib(method_colour(row))
+            colour = as_matplotlib(method_colour(bases.index(e["method"].split(",")[0])))
             ax.errorbar(
                 mean,
                 row,
@@ -361,6 +363,8 @@ def leaderboard_figure(board: dict[str, Any], path: Path) -> None:
                 ax.annotate("*", (bounds[1], row), xytext=(4, -4), textcoords="offset points")
         ax.set_xlabel(title)
         ax.grid(axis="x", color="0.9")
+        if reference is not None:  # the line every paired test compares with
+            ax.axvline(reference[key]["mean"], color="0.5", lw=0.8, ls="--")
     axes[1].axvline(0, color="0.7", lw=0.8)
     axes[0].set_yticks(rows, names)
     axes[0].invert_yaxis()

@@ -185,6 +185,7 @@ def leaderboard(
 def leaderboard_markdown(board: dict[str, Any]) -> str:
     """The leaderboard as Markdown: the ranking on the point prediction, then best of K."""
     comparison = {e["method"]: e for e in board["entries"]}
+    by_best_of_k = dict(sorted(comparison.items(), key=lambda item: item[1]["final_ade"]["mean"]))
     settings = [["method", "chosen settings", "trials", "CPU s / job"]]
     for e in board["entries"]:
         if ", c from" in e["method"]:
@@ -226,9 +227,9 @@ def leaderboard_markdown(board: dict[str, Any]) -> str:
                 ]
             ),
             "",
-            "Best of K:",
+            "Best of K (ordered by its own final average):",
             "",
-            markdown_table(comparison_rows(comparison, "ade")),
+            markdown_table(comparison_rows(by_best_of_k, "ade")),
             "",
             "Chosen settings and cost:",
             "",
