@@ -1,12 +1,18 @@
-"""The project's one error type for bad input: the entry points print it as one line, exit 2.
+"""The project's error types the entry points print as one line: bad input (exit 2) and a job
+process that died (exit 1).
 
-It lives in the learner, the lowest floor that raises it, so `viz` and `sim` share it without
-importing upwards."""
+They live in the learner, the lowest floor, so `viz` and `sim` share them without importing
+upwards."""
 
 from __future__ import annotations
 
 import difflib
 from collections.abc import Iterable
+
+
+class WorkerDied(RuntimeError):
+    """A job's worker process ended without a result: killed, out of memory, or unable to start
+    (the message says which are possible and what to do)."""
 
 
 class InputError(ValueError):

@@ -20,7 +20,7 @@ from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import Any
 
-from c2inet.errors import InputError, quote
+from c2inet.errors import InputError, WorkerDied, quote
 
 BACKENDS = ("local", "ray")
 
@@ -95,6 +95,7 @@ def run_jobs(
         return _run_on_ray(fn, jobs, shared, processes, ray_address, options, progress, tasks_of)
     if processes <= 1 or len(jobs) <= 1:
         return [fn(job, *shared, **options, on_event=progress) for job in jobs]
+    check_importable_main()
     pool = ProcessPoolExecutor(
         min(processes, len(jobs)),
         multiprocessing.get_context("spawn"),  # torch and fork do not mix
@@ -103,6 +104,17 @@ def run_jobs(
     )
     with _StopOnTermination():
         return _run_in_pool(pool, fn, jobs, options, progress, tasks_of)
+
+
+def check_importable_main() -> None:
+    """Local workers start by importing the driver's main module again; one read from standard
+    input (``python - < script.py``) cannot be, and its workers would die at start-up."""
+    path = getattr(sys.modules.get("__main__"), "__file__", None)
+    if path is not None and not Path(path).is_file():
+        raise InputError(
+            f"jobs > 1: the main program {path!r} is not a file, so worker processes cannot "
+            "start; save it to a file and run that, or use one job"
+        )
 
 
 def _run_in_pool(pool, fn, jobs, options, progress, tasks_of) -> list[Any]:
@@ -117,7 +129,12 @@ def _run_in_pool(pool, fn, jobs, options, progress, tasks_of) -> list[Any]:
             try:
                 results[index] = future.result()
             except BrokenProcessPool:
-                raise RuntimeError("a job process died (out of memory, or killed)") from None
+                raise WorkerDied(
+                    "a job process died: killed, out of memory, or it could not start (a script "
+                    "that runs jobs > 1 must be a file whose work sits under "
+                    "`if __name__ == \"__main__\":`, since each worker imports it again); "
+                    "finished jobs are kept: add --resume to continue"
+                ) from None
             progress("job_end", {"tasks": tasks_of(jobs[index])})
         return [results[i] for i in range(len(jobs))]
     finally:  # on Ctrl-C or an error too: no worker outlives the driver

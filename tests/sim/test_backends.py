@@ -82,3 +82,35 @@ def test_a_listening_address_is_accepted():
 
     with socket.create_server(("127.0.0.1", 0)) as server:
         check_ray_address(f"127.0.0.1:{server.getsockname()[1]}")
+
+
+UNGUARDED = textwrap.dedent(
+    """
+    from sim.experiment.backends import run_jobs
+
+    def double(job):
+        return 2 * job
+
+    print(run_jobs(double, [1, 2], processes=2))  # no __main__ guard: every worker reruns this
+    """
+)
+
+
+@pytest.mark.parametrize("how", ["stdin", "unguarded file"])
+def test_a_driver_whose_workers_cannot_start_stops_with_one_line(tmp_path, how):
+    """Issue 26, item 5: a script on standard input hung for over 10 minutes after its workers
+    died, and a script without the ``__main__`` idiom printed multiprocessing's error and hung."""
+    script = tmp_path / "driver.py"
+    script.write_text(UNGUARDED)
+    command = [sys.executable, "-"] if how == "stdin" else [sys.executable, str(script)]
+    done = subprocess.run(
+        command,
+        input=UNGUARDED if how == "stdin" else None,
+        capture_output=True,
+        text=True,
+        timeout=120,  # a hang fails here
+        cwd=tmp_path,
+    )
+    assert done.returncode != 0
+    expected = "is not a file" if how == "stdin" else "could not start"
+    assert expected in done.stderr.splitlines()[-1]
