@@ -132,7 +132,7 @@ def _run_in_pool(pool, fn, jobs, options, progress, tasks_of) -> list[Any]:
                 raise WorkerDied(
                     "a job process died: killed, out of memory, or it could not start (a script "
                     "that runs jobs > 1 must be a file whose work sits under "
-                    "`if __name__ == \"__main__\":`, since each worker imports it again); "
+                    '`if __name__ == "__main__":`, since each worker imports it again); '
                     "finished jobs are kept: add --resume to continue"
                 ) from None
             progress("job_end", {"tasks": tasks_of(jobs[index])})

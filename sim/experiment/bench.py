@@ -118,7 +118,7 @@ def run_bench(
     """Tune, evaluate and rank; returns the leaderboard (also written under ``out``)."""
     execution = execution or Execution()
     claim(out, bench, execution, resume, overwrite)
-    chosen = run_tuning(bench.tuning(), out / "tuning", execution, resume)
+    chosen = run_tuning(bench.tuning(), out / "tuning", execution)
     planned = []
     for method in bench.base.methods:
         settings = layered(bench.base, chosen[method]["settings"])

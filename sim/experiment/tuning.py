@@ -106,14 +106,27 @@ def _defaults(method: str, space: dict[str, Tunable], base: ExperimentConfig) ->
     return out
 
 
-def run_tuning(
-    tune: TuneConfig, out: Path, execution: Execution | None = None, resume: bool = False
-) -> dict[str, dict[str, Any]]:
-    """Tune every method of ``tune.base`` under ``out``; returns per method its chosen settings
-    (``settings``, by scope), their objective, the defaults' objective and every trial.
-    Also written to ``out/tuning.json``."""
-    import optuna
+def _finite(value: float) -> float | None:
+    """An objective for JSON: a diverged trial's infinity as null."""
+    return value if math.isfinite(value) else None
+
+
+def _distribution(space: Tunable):
+    """The Optuna distribution of one searched range."""
     from optuna.distributions import FloatDistribution, IntDistribution
+
+    if space.integer:
+        return IntDistribution(int(space.low), int(space.high), log=space.log)
+    return FloatDistribution(space.low, space.high, log=space.log)
+
+
+def run_tuning(
+    tune: TuneConfig, out: Path, execution: Execution | None = None
+) -> dict[str, dict[str, Any]]:
+    """Tune every method of ``tune.base`` under ``out``, continuing whatever an earlier, killed
+    tuning left there; returns per method its chosen settings (``settings``, by scope), their
+    objective, the defaults' objective and every trial. Also written to ``out/tuning.json``."""
+    import optuna
     from optuna.trial import TrialState
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
@@ -142,15 +155,7 @@ def run_tuning(
             study.sampler = _sampler(base.seed, method, count, tune.trials)
             if count == 0 and not study.get_trials(deepcopy=False, states=(TrialState.WAITING,)):
                 study.enqueue_trial(_defaults(method, space, base))  # the defaults come first
-            distributions = {
-                key: (IntDistribution if s.integer else FloatDistribution)(
-                    int(s.low) if s.integer else s.low,
-                    int(s.high) if s.integer else s.high,
-                    log=s.log,
-                )
-                for key, s in space.items()
-            }
-            trial = study.ask(distributions)
+            trial = study.ask({key: _distribution(s) for key, s in space.items()})
             settings = layered(base, as_settings(method, trial.params))
             config = replace(base, methods=(method,), settings=settings)
             folder = out / "trials" / method / f"trial_{count:03d}"
@@ -164,19 +169,18 @@ def run_tuning(
         done = run_together(planned, execution, resume=True, argv=[])
         for (method, trial), (metrics, _) in zip(asked, done, strict=True):
             value = metrics["methods"][method]["final_ade_k1_per_seed"][0]
-            if math.isfinite(value):
-                studies[method].tell(trial, value)
-            else:
-                studies[method].tell(trial, state=TrialState.FAIL)
+            # a diverged trial is the worst there is, not a failure to ask again (same seed,
+            # same history: the same settings, for ever)
+            studies[method].tell(trial, value if math.isfinite(value) else math.inf)
     chosen = {m: {"settings": {}, "trials": []} for m in base.methods if m not in tuned}
     for method in tuned:
         trials = finished(method)
         best = min(trials, key=lambda t: (t.value, t.number))
         chosen[method] = {
             "settings": as_settings(method, best.params),
-            "objective": best.value,
-            "default_objective": trials[0].value,  # the first finished trial is the defaults
-            "trials": [{"params": t.params, "objective": t.value} for t in trials],
+            "objective": _finite(best.value),
+            "default_objective": _finite(trials[0].value),  # the first trial is the defaults
+            "trials": [{"params": t.params, "objective": _finite(t.value)} for t in trials],
         }
     write_text_atomic(out / "tuning.json", json.dumps(chosen, indent=1) + "\n")
     return chosen

@@ -126,3 +126,22 @@ def test_a_replay_budget_gives_every_replay_method_the_same_scenes():
 def test_bad_tuning_options_are_refused():
     with pytest.raises(InputError, match="trials must be at least 1"):
         TuneConfig(ExperimentConfig("crowd_noise_0.1", methods=("cv",)), trials=0)
+
+
+def test_a_diverged_trial_counts_as_the_worst_and_tuning_moves_on(tmp_path, monkeypatch):
+    """A NaN objective is told as +inf (asked again, it would get the same settings for ever),
+    and written as null."""
+    import math
+
+    from sim.experiment import tuning
+
+    def diverging(planned, execution, resume, argv):
+        return [({"methods": {"finetune": {"final_ade_k1_per_seed": [math.nan]}}}, [])] * len(
+            planned
+        )
+
+    monkeypatch.setattr(tuning, "run_together", diverging)
+    base = ExperimentConfig("crowd_noise_0.1", methods=("finetune",), quick=True, record=False)
+    chosen = run_tuning(TuneConfig(base, trials=2), tmp_path, Execution(cache=tmp_path / "c"))
+    assert [t["objective"] for t in chosen["finetune"]["trials"]] == [None, None]  # JSON null
+    assert len(chosen["finetune"]["trials"]) == 2
