@@ -32,7 +32,8 @@ def _bounded(kind: type, what: str, low: float, high: float) -> Callable[[str], 
         except ValueError:
             raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
         if not low <= value <= high:  # NaN is in no range
-            raise argparse.ArgumentTypeError(f"{text} is not between {low:g} and {high:g}")
+            bounds = (low, high) if kind is int else (f"{low:g}", f"{high:g}")
+            raise argparse.ArgumentTypeError(f"{text} is not between {bounds[0]} and {bounds[1]}")
         return value
 
     return convert

@@ -174,7 +174,7 @@ def test_seeds_give_mean_and_std(tmp_path):
         (["--scenario", "crowd_noise_0.1", "--set", "train.lr=nan"], "'lr' must be finite"),
         (["--scenario", "crowd_noise_0.1", "--set", "model.n_mc=1.5"], "must be an integer"),
         (["--scenario", "crowd_noise_0.1", "--set", "train.epochs=3"], "use --epochs"),
-        (["--scenario", "crowd_noise_0.1", "--seed", "-1"], "seed must be at least 0"),
+        (["--scenario", "crowd_noise_0.1", "--seed", "-1"], "--seed: -1 is not between 0 and"),
     ],
 )
 def test_bad_options_give_one_error_line(capsys, args, message):
