@@ -77,9 +77,10 @@ def _folds(labels: np.ndarray, seed: int):
 
 
 def probe_accuracy(features: np.ndarray, labels: np.ndarray, seed: int = 0) -> float | None:
-    """Cross-validated accuracy of a linear (logistic) probe; None without 2 classes of 2."""
+    """Cross-validated accuracy of a linear (logistic) probe; None without 2 classes of 2, or
+    for the features of a model whose training diverged (not finite)."""
     folds = _folds(labels, seed)
-    if folds is None:
+    if folds is None or not np.isfinite(features).all():
         return None
     from sklearn.linear_model import LogisticRegression
     from sklearn.model_selection import cross_val_predict
@@ -92,10 +93,11 @@ def probe_accuracy(features: np.ndarray, labels: np.ndarray, seed: int = 0) -> f
 
 
 def knob_r2(features: np.ndarray, values: np.ndarray, seed: int = 0) -> float | None:
-    """Cross-validated R^2 of a linear (ridge) regression of the knob value on the features."""
+    """Cross-validated R^2 of a linear (ridge) regression of the knob value on the features
+    (None as for :func:`probe_accuracy`)."""
     labels = np.unique(values, return_inverse=True)[1]
     folds = _folds(labels, seed)
-    if folds is None:
+    if folds is None or not np.isfinite(features).all():
         return None
     from sklearn.linear_model import Ridge
     from sklearn.metrics import r2_score

@@ -214,6 +214,19 @@ def test_probe_accuracy_separates_signal_from_noise():
     assert probe_accuracy(signal, np.zeros(120, int)) is None
 
 
+def test_the_diagnostics_of_a_diverged_model_are_empty_not_an_error():
+    """A tuning trial at a too large learning rate made a model of NaN, whose probes raised
+    inside scikit-learn and ended the whole benchmark."""
+    tasks = toy_tasks(8)
+    model = get_method("c2inet-online")(ModelConfig()).build_model()
+    with torch.no_grad():
+        for parameter in model.parameters():
+            parameter.fill_(math.nan)
+    out = diagnose(model, [t.test for t in tasks], [t.value for t in tasks])
+    assert out["probe_context"] is None and out["probe_c"] is None and out["knob_r2"] is None
+    assert out["probe_observed"] is not None  # the data's own features are still fine
+
+
 def test_diagnostics_of_a_baseline_have_no_confounder_part():
     tasks = toy_tasks(8)
     model = get_method("finetune")(ModelConfig()).build_model()
