@@ -76,11 +76,19 @@ def _folds(labels: np.ndarray, seed: int):
     return StratifiedKFold(min(PROBE_FOLDS, counts.min()), shuffle=True, random_state=seed)
 
 
+def _probeable(features: np.ndarray) -> bool:
+    """Features a probe can standardise: finite, with a finite variance (a diverged model's can
+    be NaN, or finite but so large that their variance overflows)."""
+    values = np.asarray(features, dtype=np.float64)
+    with np.errstate(over="ignore", invalid="ignore"):
+        return bool(np.isfinite(values).all() and np.isfinite(values.var(axis=0)).all())
+
+
 def probe_accuracy(features: np.ndarray, labels: np.ndarray, seed: int = 0) -> float | None:
     """Cross-validated accuracy of a linear (logistic) probe; None without 2 classes of 2, or
     for the features of a model whose training diverged (not finite)."""
     folds = _folds(labels, seed)
-    if folds is None or not np.isfinite(features).all():
+    if folds is None or not _probeable(features):
         return None
     from sklearn.linear_model import LogisticRegression
     from sklearn.model_selection import cross_val_predict
@@ -97,7 +105,7 @@ def knob_r2(features: np.ndarray, values: np.ndarray, seed: int = 0) -> float | 
     (None as for :func:`probe_accuracy`)."""
     labels = np.unique(values, return_inverse=True)[1]
     folds = _folds(labels, seed)
-    if folds is None or not np.isfinite(features).all():
+    if folds is None or not _probeable(features):
         return None
     from sklearn.linear_model import Ridge
     from sklearn.metrics import r2_score

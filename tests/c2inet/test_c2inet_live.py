@@ -225,6 +225,9 @@ def test_the_diagnostics_of_a_diverged_model_are_empty_not_an_error():
     out = diagnose(model, [t.test for t in tasks], [t.value for t in tasks])
     assert out["probe_context"] is None and out["probe_c"] is None and out["knob_r2"] is None
     assert out["probe_observed"] is not None  # the data's own features are still fine
+    labels = np.repeat([0, 1], 10)
+    huge = np.random.default_rng(0).normal(size=(20, 3)) * 1e200  # finite, variance overflows
+    assert probe_accuracy(huge, labels) is None
 
 
 def test_diagnostics_of_a_baseline_have_no_confounder_part():
