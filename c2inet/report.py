@@ -77,10 +77,8 @@ def summarise(
     for metric in (f"{m}{s}" for s in suffixes for m in COMPARED):
         # the per-seed numbers a paired comparison needs: final average and final forgetting
         out[f"final_{metric}_per_seed"] = [round(float(np.mean(r[metric][-1])), 6) for r in runs]
-        forgetting = [
-            forgetting_final(r[metric]).mean() if len(r[metric]) > 1 else 0.0 for r in runs
-        ]
-        out[f"forgetting_final_{metric}_per_seed"] = _rounded(forgetting)
+        forgetting = [_forgetting(forgetting_final, [r[metric]])[1] for r in runs]
+        out[f"forgetting_final_{metric}_per_seed"] = forgetting
     for key in ("queue_size", "pruned", "memory_floats"):
         if extras and extras[0] and key in extras[0][0]:
             out[key] = [int(np.mean([e[i][key] for e in extras])) for i in range(len(extras[0]))]

@@ -185,6 +185,8 @@ def leaderboard(
 def leaderboard_markdown(board: dict[str, Any]) -> str:
     """The leaderboard as Markdown: the ranking on the point prediction, then best of K."""
     comparison = {e["method"]: e for e in board["entries"]}
+    ranked = comparison_rows(comparison, "ade_k1")  # the entries are in rank order
+    ranks = ["rank", *(str(e["rank"]) for e in board["entries"])]
     by_best_of_k = dict(sorted(comparison.items(), key=lambda item: item[1]["final_ade"]["mean"]))
     settings = [["method", "chosen settings", "trials", "CPU s / job"]]
     for e in board["entries"]:
@@ -217,15 +219,7 @@ def leaderboard_markdown(board: dict[str, Any]) -> str:
             "",
             "Point prediction (K = 1):",
             "",
-            markdown_table(
-                [["rank", *comparison_rows({}, "ade_k1")[0]]]
-                + [
-                    [str(e["rank"]), *row]
-                    for e, row in zip(
-                        board["entries"], comparison_rows(comparison, "ade_k1")[1:], strict=True
-                    )
-                ]
-            ),
+            markdown_table([[rank, *row] for rank, row in zip(ranks, ranked, strict=True)]),
             "",
             "Best of K (ordered by its own final average):",
             "",

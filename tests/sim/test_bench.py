@@ -95,7 +95,7 @@ def test_the_command_ranks_every_method_and_resumes_to_the_same_leaderboard(tmp_
     means = [e["final_ade_k1"]["mean"] for e in board["entries"]]
     assert means == sorted(means) and board["tune_scenario"] == "crowd_noise_0.1"
     entry = {e["method"]: e for e in board["entries"]}
-    assert entry["ewc"]["memory_floats"] > 0 == entry["finetune"]["memory_floats"]
+    assert entry["ewc"]["memory_floats"] > 0 and entry["finetune"]["memory_floats"] == 0
     assert entry["ewc"]["trials"] == entry["finetune"]["trials"] == 2  # the same budget
     assert "strength" in entry["ewc"]["settings"]["ewc"]
     assert entry["finetune"]["final_ade_k1"]["p_value"] == 1.0  # the reference against itself
