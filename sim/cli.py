@@ -146,11 +146,13 @@ def add_experiment_options(
     jobs: bool = True,
     grid: bool = False,
     record: bool = True,
+    loggers: bool = True,
 ) -> None:
     """The options of every command that trains: what to train, the domain cache, ``--set``,
-    ``--overwrite``; with ``jobs`` (the training runs as the engine's jobs) also ``--resume``,
-    the backend, ``--jobs``, loggers and, with ``record`` (it writes recordings), ``--no-record``.
-    ``methods``: the default of ``--methods``; ``grid``: ``--set`` lists values to sweep."""
+    ``--overwrite``; with ``jobs`` (the training runs as jobs) also ``--resume``, the backend
+    and ``--jobs``, with ``loggers`` (the jobs are the engine's runs) ``--logger`` and with
+    ``record`` (they write recordings) ``--no-record``. ``methods``: the default of
+    ``--methods``; ``grid``: ``--set`` lists values to sweep."""
     p.add_argument(
         "--methods", default=methods, help=f"comma-separated, or all (default {methods})"
     )
@@ -191,11 +193,12 @@ def add_experiment_options(
     p.add_argument("--ray-address", help="join this Ray cluster instead of starting one")
     if record:
         p.add_argument("--no-record", action="store_true", help="do not write recording.rrd")
-    p.add_argument(
-        "--logger",
-        default="",
-        help="also log every job's curves: csv, tensorboard or both (comma-separated)",
-    )
+    if loggers:
+        p.add_argument(
+            "--logger",
+            default="",
+            help="also log every job's curves: csv, tensorboard or both (comma-separated)",
+        )
 
 
 def experiment_options(args: argparse.Namespace, grid: bool = False) -> dict:

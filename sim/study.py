@@ -38,7 +38,8 @@ def listing() -> str:
 def study_parser(study: Study):
     examples = "\n".join(f"  python -m sim.study {study.name} {e}" for e in study.examples)
     p = parser(f"sim.study {study.name}", study.title, examples, scenarios=study.scenarios)
-    add_experiment_options(p, study.methods, jobs=study.jobs, record=study.records)
+    record = study.sweeps and study.records
+    add_experiment_options(p, study.methods, record=record, loggers=study.sweeps)
     p.add_argument(
         "--out", type=Path, help=f"the study's folder (default {STUDIES_ROOT / study.name})"
     )
@@ -58,12 +59,12 @@ def run_study(study: Study, argv: list[str]) -> int:
     config = ExperimentConfig(study.scenario_of(args), **options)
     execution = execution_of(args)
     out = args.out or STUDIES_ROOT / study.name
-    if not study.jobs:  # a study that runs jobs claims its folder as a sweep
-        claim(out, config, execution, overwrite=args.overwrite)
+    if not study.sweeps:  # a study of sweeps claims its folder as a sweep
+        claim(out, config, execution, args.resume, args.overwrite)
     try:
         report = study.run(args, config, execution, out, [*p.prog.split(), *argv])
     except KeyboardInterrupt:
-        return interrupted(out, resumable=study.jobs)
+        return interrupted(out, resumable=True)
     name = study.write(report, out)
     print(study.markdown(report))
     print(f"wrote {out}: open {name}.md (the table) and {name}.png; {name}.json", file=sys.stderr)

@@ -66,7 +66,7 @@ RUN_FILES = {
     "summary.json",
     *(f"{name}.{ext}" for name in REPORTS for ext in ("json", "md", "png")),
 }
-RUN_FOLDERS = {"jobs", "matrices", "figures", "logs", "tensorboard", "cache"}
+RUN_FOLDERS = {"jobs", "matrices", "figures", "logs", "tensorboard", "cache", "cells"}
 TEMPORARY = re.compile(r"^\.[^/]+\.[A-Za-z0-9_]{8}$")  # write_atomic's .NAME.XXXXXXXX
 
 

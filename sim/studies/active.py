@@ -19,13 +19,11 @@ held-out test sets: mean and worst ADE against scenes simulated. It writes ``act
 
 from __future__ import annotations
 
-import sys
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
 from c2inet.data import Windows
 from c2inet.errors import InputError
@@ -33,7 +31,8 @@ from c2inet.options import check_range
 from c2inet.stream import StreamLearner
 from c2inet.trainer import Task, evaluate
 from sim.domains import domain_seed
-from sim.experiment import ExperimentConfig
+from sim.experiment import Execution, ExperimentConfig
+from sim.experiment.cells import cell_identity, run_cells
 from sim.experiment.curriculum import knob_grid, make_tasks, scene_windows
 from sim.generators import child_seed
 from sim.scenario import DomainSpec
@@ -96,15 +95,15 @@ class SceneSource:
 def run_strategy(
     strategy: str,
     order_seed: int,
+    seed_index: int,
     config: ExperimentConfig,
     method: str,
     tasks: list[Task],
     source: SceneSource,
     options: ActiveOptions,
-    seed_index: int,
     baseline: list[float],
 ) -> dict[str, list]:
-    """One strategy's rounds: the values it chose and the held-out errors after each.
+    """One strategy's rounds (a cell): the values it chose and the held-out errors after each.
     ``baseline``: constant velocity's validation ADE at each grid value."""
     train = replace(config.train_config(seed_index), diagnostics=False, val_every=0)
     learner = StreamLearner(config.method(method), train)
@@ -143,32 +142,44 @@ def need(strategy: str, learner: StreamLearner, tasks: list[Task], seed: int, ba
 def run_active(
     config: ExperimentConfig,
     options: ActiveOptions,
-    cache: Path = Path(".cache/domains"),
-    workers: int = 1,
-    memory_budget: float | None = None,
+    execution: Execution | None = None,
+    folder: Path | None = None,
+    resume: bool = False,
 ) -> dict[str, Any]:
-    """Every strategy for the first method of ``config``; the report as a dictionary."""
+    """Every strategy for the first method of ``config``, its runs as cells on ``execution``
+    (kept in ``folder``, if given, for ``resume``); the report as a dictionary."""
+    execution = execution or Execution()
     specs = grid_specs(config)
     if config.quick:
         options = replace(options, rounds=min(options.rounds, 3), scenes=min(options.scenes, 6))
-    tasks, _ = make_tasks(specs, config.seed, config.quick, cache, workers, memory_budget)
+    tasks, _ = make_tasks(
+        specs,
+        config.seed,
+        config.quick,
+        execution.cache,
+        execution.workers,
+        execution.memory_budget,
+    )
     if any(t.val is None for t in tasks):
         raise InputError(f"scenario {config.scenario!r}: every grid value needs validation scenes")
     method = config.methods[0]
     source = SceneSource(specs, options.scenes, config.seed)
     cv = config.method("cv").build_model()
     baseline = [evaluate(cv, t.val, config.k, config.seed + j)["ade"] for j, t in enumerate(tasks)]
+    orders = {s: options.random_orders if s == "random" else 1 for s in options.strategies}
+    cells = {
+        f"{strategy}-seed_{s}-order_{o}": (strategy, o, s)
+        for strategy in options.strategies
+        for s in range(config.seeds)
+        for o in range(orders[strategy])
+    }
+    data = [w.positions for t in tasks for w in (t.val, t.test)]
+    identity = cell_identity("active", config.to_json(), asdict(options), arrays=data)
+    shared = (config, method, tasks, source, options, baseline)
+    done = run_cells(run_strategy, cells, shared, execution, folder, identity, resume)
     strategies = {}
-    count = sum(options.random_orders if s == "random" else 1 for s in options.strategies)
-    bar = tqdm(total=count * config.seeds, desc="runs", unit="run", file=sys.stderr, leave=False)
     for strategy in options.strategies:
-        orders = options.random_orders if strategy == "random" else 1
-        runs = []
-        for s in range(config.seeds):
-            for order in range(orders):
-                args = (config, method, tasks, source, options, s, baseline)
-                runs.append(run_strategy(strategy, order, *args))
-                bar.update()
+        runs = [done[name] for name, (chosen, *_) in cells.items() if chosen == strategy]
         mean, worst = np.array([r["mean"] for r in runs]), np.array([r["worst"] for r in runs])
         strategies[strategy] = {
             "runs": len(runs),
@@ -179,7 +190,6 @@ def run_active(
             "worst_std": worst.std(0).tolist(),
             "final_errors": np.mean([r["final_errors"] for r in runs], axis=0).tolist(),
         }
-    bar.close()
     return {
         "scenario": config.scenario,
         "family": specs[0].family.name,
@@ -248,9 +258,7 @@ class Active(Study):
     def run(self, args, config, execution, out, argv):
         strategies = tuple(s.strip() for s in args.strategies.split(",") if s.strip())
         options = ActiveOptions(args.rounds, args.scenes, strategies, args.random_orders)
-        return run_active(
-            config, options, execution.cache, execution.workers, execution.memory_budget
-        )
+        return run_active(config, options, execution, out, args.resume)
 
 
 register(Active())

@@ -25,21 +25,21 @@ STUDIES: dict[str, Study] = {}
 
 
 class Study:
-    """One study. ``jobs``: it runs its training as the engine's jobs (a sweep), so it takes
-    ``--jobs``, ``--backend`` and ``--resume`` (and ``--no-record`` if it ``records``);
-    otherwise it trains in this
-    process. ``scenarios``: ``--scenario`` may be repeated. ``one_method``: ``--methods`` names
-    exactly one learner."""
+    """One study. Every study runs its training as jobs on a backend (``--jobs``, ``--backend``)
+    and resumes (``--resume``). ``sweeps``: its jobs are the engine's experiments (a sweep, with
+    run folders, ``--logger`` and, if it ``records``, ``--no-record``); otherwise they are
+    cells (``sim.experiment.cells``) of its own loop. ``scenarios``: ``--scenario`` may be
+    repeated. ``one_method``: ``--methods`` names exactly one learner."""
 
     name: str = ""
     title: str = ""  # one line, the command's description
     examples: tuple[str, ...] = ()  # argument lists after ``python -m sim.study NAME``
     methods: str = "finetune"  # the default of --methods
-    jobs: bool = False
+    sweeps: bool = False
     scenarios: bool = False
     scenario_required: bool = True
     one_method: bool = False
-    records: bool = True  # with ``jobs``: its runs write recordings (else no --no-record)
+    records: bool = True  # with ``sweeps``: its runs write recordings (else no --no-record)
     report: str = ""  # the files' name: NAME.json, NAME.md, NAME.png (default: the study's name)
 
     def __init_subclass__(cls, **kwargs):

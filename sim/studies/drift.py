@@ -15,20 +15,19 @@ value. It writes ``drift.json``, ``drift.md`` and ``drift.png`` to ``--out``.
 
 from __future__ import annotations
 
-import sys
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
 from c2inet.data import Windows
 from c2inet.errors import InputError
 from c2inet.options import check_range
 from c2inet.stream import ShiftDetector, StreamLearner
 from sim.domains import domain_seed
-from sim.experiment import ExperimentConfig
+from sim.experiment import Execution, ExperimentConfig
+from sim.experiment.cells import cell_identity, run_cells
 from sim.experiment.curriculum import knob_grid, make_tasks, scene_windows
 from sim.generators import child_seed
 from sim.scenario import DomainSpec
@@ -86,10 +85,10 @@ def drift_stream(
 
 
 def stream_run(
-    config: ExperimentConfig, method: str, seed_index: int, chunks, probes, options, bar=None
-):
-    """One method through the stream: the (chunks x probes) ADE and FDE, and the boundaries the
-    detector found and the method was given."""
+    method: str, seed_index: int, config: ExperimentConfig, chunks, probes, options
+) -> dict[str, list]:
+    """One method and seed through the stream (a cell): the (chunks x probes) ADE and FDE, and
+    the boundaries the detector found and the method was given."""
     train = replace(config.train_config(seed_index), diagnostics=False, val_every=0)
     learner = StreamLearner(config.method(method), train)
     detector = ShiftDetector(options.threshold)
@@ -102,9 +101,7 @@ def stream_run(
         for j, probe in enumerate(probes):
             scores = learner.evaluate(probe, train.seed + j)
             ade[c, j], fde[c, j] = scores["ade"], scores["fde"]
-        if bar is not None:
-            bar.update()
-    return ade, fde, found, learner.boundaries
+    return {"ade": ade.tolist(), "fde": fde.tolist(), "found": found, "given": learner.boundaries}
 
 
 def forgetting(errors: np.ndarray, middles: np.ndarray, probe_values: list[float]) -> np.ndarray:
@@ -121,27 +118,37 @@ def forgetting(errors: np.ndarray, middles: np.ndarray, probe_values: list[float
 def run_drift(
     config: ExperimentConfig,
     options: DriftOptions,
-    cache: Path = Path(".cache/domains"),
-    workers: int = 1,
-    memory_budget: float | None = None,
+    execution: Execution | None = None,
+    folder: Path | None = None,
+    resume: bool = False,
 ) -> dict[str, Any]:
-    """Every method of ``config`` through the drift stream; the report as a dictionary."""
+    """Every method and seed of ``config`` through the drift stream, as cells on
+    ``execution``'s backend (kept in ``folder``, if given, for ``resume``); the report."""
+    execution = execution or Execution()
     specs = drift_specs(config)
     if config.quick:
         options = replace(options, scenes=min(options.scenes, 24), chunks=min(options.chunks, 3))
-    tasks, _ = make_tasks(specs, config.seed, config.quick, cache, workers, memory_budget)
+    tasks, _ = make_tasks(
+        specs,
+        config.seed,
+        config.quick,
+        execution.cache,
+        execution.workers,
+        execution.memory_budget,
+    )
     probes = [task.test for task in tasks]
     probe_values = [float(spec.value) for spec in specs]
     chunks, middles = drift_stream(specs, options, config.seed)
+    cells = {f"{m}-seed_{s}": (m, s) for m in config.methods for s in range(config.seeds)}
+    data = [w.positions for w in chunks + probes]
+    identity = cell_identity("drift", config.to_json(), asdict(options), arrays=data)
+    shared = (config, chunks, probes, options)
+    done = run_cells(stream_run, cells, shared, execution, folder, identity, resume)
     methods = {}
-    total = len(config.methods) * config.seeds * len(chunks)
-    bar = tqdm(total=total, desc="chunks", unit="chunk", file=sys.stderr, leave=False)
     for name in config.methods:
-        runs = [
-            stream_run(config, name, s, chunks, probes, options, bar) for s in range(config.seeds)
-        ]
-        ade = np.stack([r[0] for r in runs])
-        fde = np.stack([r[1] for r in runs])
+        runs = [done[f"{name}-seed_{s}"] for s in range(config.seeds)]
+        ade = np.array([r["ade"] for r in runs])
+        fde = np.array([r["fde"] for r in runs])
         lost = np.stack([forgetting(a, middles, probe_values) for a in ade])
         methods[name] = {
             "needs_boundaries": config.method(name).needs_boundaries(),
@@ -154,10 +161,9 @@ def run_drift(
             "anytime_ade": float(ade.mean()),
             "forgetting": lost.mean(0).tolist(),
             "mean_forgetting": float(lost.mean()),
-            "detected": runs[0][2],
-            "given": runs[0][3],
+            "detected": runs[0]["found"],
+            "given": runs[0]["given"],
         }
-    bar.close()
     return {
         "scenario": config.scenario,
         "family": specs[0].family.name,
@@ -231,9 +237,7 @@ class Drift(Study):
 
     def run(self, args, config, execution, out, argv):
         options = DriftOptions(args.scenes, args.chunks, args.boundaries, args.threshold)
-        return run_drift(
-            config, options, execution.cache, execution.workers, execution.memory_budget
-        )
+        return run_drift(config, options, execution, out, args.resume)
 
 
 register(Drift())

@@ -28,7 +28,8 @@ from scipy.stats import wasserstein_distance
 from c2inet.errors import InputError
 from c2inet.trainer import ContinualTrainer, Task, evaluate
 from sim.data import Domain
-from sim.experiment import ExperimentConfig
+from sim.experiment import Execution, ExperimentConfig
+from sim.experiment.cells import cell_identity, run_cells
 from sim.experiment.curriculum import make_tasks
 from sim.scenario import parse_scenario
 from sim.stats import PROFILES, realised_summary, relative_difference, scene_profiles
@@ -75,20 +76,45 @@ def compare_statistics(generated: Domain, reference: Domain) -> dict[str, Any]:
     }
 
 
-def transfer_matrix(config: ExperimentConfig, method: str, tasks: list[Task]) -> dict[str, Any]:
+def transfer_cell(
+    seed_index: int, trained_on: int, config: ExperimentConfig, method: str, tasks: list[Task]
+) -> dict[str, list[float]]:
+    """One row of the transfer matrix (a cell): ADE and FDE on every task of a model trained on
+    task ``trained_on`` alone."""
+    train = replace(config.train_config(seed_index), diagnostics=False, val_every=0)
+    trainer = ContinualTrainer(config.method(method), [tasks[trained_on]], train)
+    trainer.run()
+    scores = [evaluate(trainer.model, t.test, train.k, train.seed + j) for j, t in enumerate(tasks)]
+    return {"ade": [s["ade"] for s in scores], "fde": [s["fde"] for s in scores]}
+
+
+def transfer_matrix(
+    config: ExperimentConfig,
+    method: str,
+    tasks: list[Task],
+    execution: Execution | None = None,
+    folder: Path | None = None,
+    resume: bool = False,
+) -> dict[str, Any]:
     """ADE and FDE (best of K, metres) of a model trained on each task alone and tested on every
     task (rows: trained on; columns: tested on), the mean over ``config.seeds`` seeds, and
-    constant velocity's on every task."""
+    constant velocity's on every task. The trainings run as cells on ``execution``."""
     n = len(tasks)
-    ade, fde = np.zeros((config.seeds, n, n)), np.zeros((config.seeds, n, n))
-    for s in range(config.seeds):
-        train = replace(config.train_config(s), diagnostics=False, val_every=0)
-        for i, task in enumerate(tasks):
-            trainer = ContinualTrainer(config.method(method), [task], train)
-            trainer.run()
-            for j, other in enumerate(tasks):
-                scores = evaluate(trainer.model, other.test, train.k, train.seed + j)
-                ade[s, i, j], fde[s, i, j] = scores["ade"], scores["fde"]
+    cells = {f"seed_{s}-task_{i}": (s, i) for s in range(config.seeds) for i in range(n)}
+    data = [t.test.positions for t in tasks] + [t.train.positions for t in tasks]
+    identity = cell_identity("fidelity", config.to_json(), method, arrays=data)
+    done = run_cells(
+        transfer_cell,
+        cells,
+        (config, method, tasks),
+        execution or Execution(),
+        folder,
+        identity,
+        resume,
+    )
+    rows = [[done[f"seed_{s}-task_{i}"] for i in range(n)] for s in range(config.seeds)]
+    ade = np.array([[row["ade"] for row in seed] for seed in rows])
+    fde = np.array([[row["fde"] for row in seed] for seed in rows])
     cv = config.method("cv").build_model()
     baseline = [evaluate(cv, t.test, config.k, config.seed + j) for j, t in enumerate(tasks)]
     return {
@@ -123,12 +149,14 @@ def fidelity_report(
     config: ExperimentConfig,
     method: str = "finetune",
     transfer: bool = True,
-    cache: Path = Path(".cache/domains"),
-    workers: int = 1,
-    memory_budget: float | None = None,
+    execution: Execution | None = None,
+    folder: Path | None = None,
+    resume: bool = False,
 ) -> dict[str, Any]:
     """The fidelity report of ``scenario`` against ``reference`` as a dictionary (see the
-    module docstring); ``config`` gives the training options of the transfer runs."""
+    module docstring); ``config`` gives the training options of the transfer runs, which run
+    as cells on ``execution`` (kept in ``folder``, if given, for ``resume``)."""
+    execution = execution or Execution()
     extra = list(config.scenarios_dir)
     data = config.settings.get("data")
     generated_specs = parse_scenario(scenario, extra, data)
@@ -139,7 +167,14 @@ def fidelity_report(
             f"{scenario!r} {len(generated_specs)}: they pair by position, so give as many"
         )
     specs = generated_specs + reference_specs
-    tasks, domains = make_tasks(specs, config.seed, config.quick, cache, workers, memory_budget)
+    tasks, domains = make_tasks(
+        specs,
+        config.seed,
+        config.quick,
+        execution.cache,
+        execution.workers,
+        execution.memory_budget,
+    )
     n = len(generated_specs)
     pairs = []
     for i in range(n):
@@ -153,7 +188,7 @@ def fidelity_report(
         "pairs": pairs,
     }
     if transfer:
-        matrix = transfer_matrix(config, method, tasks)
+        matrix = transfer_matrix(config, method, tasks, execution, folder, resume)
         for i, pair in enumerate(pairs):
             pair["transfer"] = pair_transfer(matrix, i, n)
         report["transfer"] = {
@@ -266,9 +301,9 @@ class Fidelity(Study):
             config,
             config.methods[0],
             not args.no_transfer,
-            execution.cache,
-            execution.workers,
-            execution.memory_budget,
+            execution,
+            out,
+            args.resume,
         )
 
 

@@ -164,7 +164,7 @@ class PaperStudy(Study):
     or per task order."""
 
     methods = C2INET
-    jobs = True
+    sweeps = True
     scenarios = True
     scenario_required = False
     report = "study"

@@ -193,7 +193,7 @@ class Shift(Study):
         "--scenario crowd_noise_0.1,0.3,0.6 --quick --out /tmp/shift",
     )
     methods = DEFAULT_METHODS
-    jobs = True
+    sweeps = True
     scenarios = True
     records = False  # dozens of two-task runs: their numbers are the point
 

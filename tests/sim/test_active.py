@@ -7,7 +7,7 @@ from c2inet.checker import CHECK_CONFIG, turning_tasks
 from c2inet.methods.base import get_method
 from c2inet.model import ModelConfig
 from c2inet.stream import StreamLearner
-from sim.experiment import ExperimentConfig
+from sim.experiment import Execution, ExperimentConfig
 from sim.studies import active
 from sim.study import main
 
@@ -19,7 +19,7 @@ def quick(scenario: str, *methods: str) -> ExperimentConfig:
 def test_active_strategies_choose_differently_and_draw_the_same_scenes(tmp_path):
     config = quick("crowd_noise_0.1..0.6", "finetune")
     options = active.ActiveOptions(rounds=3, scenes=4, random_orders=2)
-    report = active.run_active(config, options, tmp_path / "cache")
+    report = active.run_active(config, options, Execution(cache=tmp_path / "cache"))
     runs = report["strategies"]
     assert runs["fixed"]["chosen"] == [[0, 2, 5]] and set(runs) == set(active.STRATEGIES)
     assert all(chosen[0] == 0 for s in runs.values() for chosen in s["chosen"])

@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from sim.experiment import ExperimentConfig
+from sim.experiment import Execution, ExperimentConfig
 from sim.studies import drift
 from sim.study import main
 
@@ -28,8 +28,9 @@ def test_the_drift_stream_drifts_and_does_not_depend_on_its_chunking():
 
 def test_drift_report_gives_boundaries_by_mode_and_marks_who_needs_them(tmp_path):
     config = quick("crowd_noise_0.1..0.6", "finetune", "ewc")
+    execution = Execution(cache=tmp_path / "cache")
     reports = {
-        mode: drift.run_drift(config, drift.DriftOptions(boundaries=mode), tmp_path / "cache")
+        mode: drift.run_drift(config, drift.DriftOptions(boundaries=mode), execution)
         for mode in ("none", "chunks")
     }
     chunks = reports["none"]["chunks"]

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from sim.domains import build_domain
-from sim.experiment import ExperimentConfig
+from sim.experiment import Execution, ExperimentConfig
 from sim.scenario import parse_scenario
 from sim.stats import realised_summary, relative_difference, scene_profiles
 from sim.studies.fidelity import Fidelity, compare_statistics, fidelity_report
@@ -53,7 +53,9 @@ def test_statistics_pass_the_orca_stand_in_and_fail_the_old_crowd():
 def test_transfer_report_trains_tests_and_writes(tmp_path):
     scenario, reference = "crowd_radius_0.2,0.5", "orca_radius_0.2,0.5"
     config = ExperimentConfig(scenario, methods=("finetune",), quick=True, record=False)
-    report = fidelity_report(scenario, reference, config, cache=tmp_path / "cache")
+    report = fidelity_report(
+        scenario, reference, config, execution=Execution(cache=tmp_path / "cache")
+    )
     matrix = np.asarray(report["transfer"]["ade"])
     assert matrix.shape == (4, 4) and np.all(np.isfinite(matrix)) and np.all(matrix > 0)
     assert len(set(matrix.ravel().round(6))) > 4  # each model and test set its own number

@@ -37,9 +37,9 @@ def test_every_study_is_registered_once_with_the_shared_options():
     for name, study in studies.items():
         options = {a.dest for a in study_parser(study)._actions}
         shared = {"methods", "epochs", "seeds", "set", "cache", "overwrite", "out", "threads"}
-        assert shared <= options, name
-        assert ({"resume", "jobs", "backend"} <= options) == study.jobs, name
-        assert ("no_record" in options) == (study.jobs and study.records), name
+        assert shared | {"resume", "jobs", "backend"} <= options, name
+        assert ("logger" in options) == study.sweeps, name
+        assert ("no_record" in options) == (study.sweeps and study.records), name
         assert (study.report or name) in REPORTS, f"{name}: --overwrite would not know its files"
     with pytest.raises(ValueError, match="registered twice"):
         register(STUDIES["drift"])
