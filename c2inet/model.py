@@ -74,6 +74,7 @@ class ModelConfig:
     free_bits_c: float = 8.0  # KL_C below this many nats (1 per dimension) costs nothing
     mi_floor_c: float = 0.0  # MI(X; C) of a batch below this many nats is penalised (liveness)
     mi_weight: float = 10.0  # the penalty per missing nat
+    c_detached: bool = False  # Q(C|X) reads the context through a stopped gradient
     residual: bool = True  # decoder steps change the last displacement (constant-velocity prior)
 
     def __post_init__(self):
@@ -278,8 +279,11 @@ class C2INetModel(Predictor):
         return self.config.c_per == "scene"
 
     def posteriors(self, batch: Batch) -> Posteriors:
+        """Q(C|X) and the context; with ``c_detached`` C's terms (KL, MI floor) cannot reshape
+        the backbone the decoder reads."""
         context = self.context(batch)
-        c_input = batch.pool(context) if self.c_per_scene else context
+        c_input = context.detach() if self.config.c_detached else context
+        c_input = batch.pool(c_input) if self.c_per_scene else c_input
         return Posteriors(context, *self.to_c(c_input))
 
     def per_agent(self, c: torch.Tensor, batch: Batch) -> torch.Tensor:
