@@ -355,3 +355,20 @@ def test_the_mi_floor_adds_its_penalty_to_the_loss_and_pushes_q_c():
     added = outputs[2.0].loss - outputs[0.0].loss
     assert added.item() == pytest.approx(ModelConfig().mi_weight * (2.0 - mi), rel=1e-4)
     assert not torch.allclose(grads[2.0], grads[0.0])
+
+
+@pytest.mark.parametrize("detached", [False, True])
+def test_a_detached_c_leaves_the_backbone_to_the_prediction(detached):
+    """With ``c_detached`` the terms on C alone (here KL_C and the MI floor, with the decoder's
+    loss switched off) send nothing into the backbone; without it they reshape it."""
+    batch = make_batch(toy_tasks(4)[0].train)
+    config = ModelConfig(c_detached=detached, mi_floor_c=2.0, free_bits_c=0.0, beta_z=0.0)
+    torch.manual_seed(0)
+    model = get_method("c2inet-noqueue")(config).build_model()
+    out = model.loss(batch, 1)
+    (out.loss - model.nll(batch, out.output).mean()).backward()  # the C terms only
+    backbone = sum(
+        p.grad.abs().sum().item() for p in model.backbone.parameters() if p.grad is not None
+    )
+    assert model.to_c.mean.weight.grad.abs().sum().item() > 0
+    assert (backbone == 0.0) == detached
