@@ -15,6 +15,11 @@ class WorkerDied(RuntimeError):
     (the message says which are possible and what to do)."""
 
 
+class CannotWrite(Exception):
+    """An output file could not be written: its device is full or read-only, or the quota is
+    spent (the message names the file and the way out)."""
+
+
 class InputError(ValueError):
     """Bad user input (scenario, family TOML, knob value, data file, option).
 

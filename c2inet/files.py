@@ -6,13 +6,15 @@ process never leaves a half-written file under a final name.
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import os
+import shutil
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
-from c2inet.errors import InputError
+from c2inet.errors import CannotWrite, InputError
 
 
 def write_atomic(path: Path, write: Callable[[Path], None]) -> None:
@@ -26,9 +28,35 @@ def write_atomic(path: Path, write: Callable[[Path], None]) -> None:
     try:
         write(Path(tmp))
         os.replace(tmp, path)
+    except (OSError, RuntimeError) as error:  # torch reports a full disk as a RuntimeError
+        why = _why_unwritable(error, path.parent)
+        Path(tmp).unlink(missing_ok=True)
+        if why is None:
+            raise
+        raise CannotWrite(f"cannot write {path}: {why}") from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+FULL = 1 << 20  # bytes free below which a failed write is put down to a full disk
+CAUSES = {
+    errno.ENOSPC: "no space left on its device; free some, then run again (--resume continues)",
+    errno.EDQUOT: "the disk quota is spent; free some, then run again (--resume continues)",
+    errno.EROFS: "its file system is read-only; choose another --out",
+}
+
+
+def _why_unwritable(error: BaseException, folder: Path) -> str | None:
+    """What made a write fail, in words, when it is the device's doing; None otherwise."""
+    code = getattr(error, "errno", None)
+    if code in CAUSES:
+        return CAUSES[code]
+    try:
+        full = shutil.disk_usage(folder).free < FULL
+    except OSError:
+        return None
+    return CAUSES[errno.ENOSPC] if full else None
 
 
 def write_text_atomic(path: Path, text: str) -> None:

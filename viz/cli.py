@@ -11,7 +11,7 @@ import sys
 from collections.abc import Callable
 from typing import Any
 
-from c2inet.errors import InputError, WorkerDied, one_line
+from c2inet.errors import CannotWrite, InputError, WorkerDied, one_line
 
 
 class _Parser(argparse.ArgumentParser):
@@ -58,7 +58,7 @@ def guarded(main: Callable[[list[str] | None], int]) -> Callable[[list[str] | No
         except InputError as error:
             print(f"error: {one_line(str(error))}", file=sys.stderr)
             return 2
-        except WorkerDied as error:
+        except (WorkerDied, CannotWrite) as error:
             print(f"error: {one_line(str(error))}", file=sys.stderr)
             return 1
 

@@ -272,3 +272,25 @@ def test_a_command_starts_without_scikit_learn():
     code = "import sys, sim.run, sim.study; assert 'sklearn' not in sys.modules, 'sklearn'"
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
+
+
+def in_private_mount(folder, options: str, command: list[str]) -> subprocess.CompletedProcess:
+    """``command`` with a small tmpfs mounted at ``folder`` in a mount namespace of its own."""
+    mount = f'mount -t tmpfs -o {options} tmpfs {folder} && exec "$@"'
+    return subprocess.run(
+        ["unshare", "-m", "sh", "-c", mount, "sh", *command], capture_output=True, text=True
+    )
+
+
+def test_a_full_or_read_only_disk_is_one_line(tmp_path):
+    if subprocess.run(["unshare", "-m", "true"], capture_output=True).returncode:
+        pytest.skip("this machine allows no private mount namespace")
+    command = [sys.executable, "-m", "sim.run", "--scenario", "crowd_noise_0.1", "--quick"]
+    command += ["--methods", "finetune", "--no-record", "--out", str(tmp_path / "run")]
+    full = in_private_mount(tmp_path, "size=200k", command)
+    assert full.returncode == 1 and "Traceback" not in full.stderr
+    assert full.stderr.strip().splitlines()[-1].startswith("error: cannot write ")
+    assert "no space left on its device" in full.stderr
+    read_only = in_private_mount(tmp_path, "ro,size=200k", command)
+    assert read_only.returncode == 2 and "Traceback" not in read_only.stderr
+    assert read_only.stderr.strip().splitlines()[-1].endswith("Read-only file system")
