@@ -171,8 +171,11 @@ Planned = tuple[str, ExperimentConfig, Path, Curriculum]  # label, configuration
 def plan(
     label: str, config: ExperimentConfig, folder: Path, execution: Execution, resume: bool
 ) -> Planned:
-    """Claim ``folder`` for one experiment of a set and prepare its data."""
-    claim(folder, config, execution, resume)
+    """Claim ``folder`` for one experiment of a set and prepare its data. Resuming a set that
+    was stopped before it claimed every folder starts the unclaimed ones afresh (a folder of
+    ours without ``config.json`` holds no finished work; anything else is refused)."""
+    claimed = (folder / "config.json").is_file()
+    claim(folder, config, execution, resume and claimed, overwrite=resume and not claimed)
     return label, config, folder, prepare(config, execution)
 
 

@@ -10,6 +10,7 @@ import pytest
 from c2inet.errors import InputError
 from sim.experiment import ExperimentConfig
 from sim.experiment.sweep import COLUMNS, SweepConfig, parse_grid
+from sim.sweep import main as sweep_main
 
 
 def test_a_sweep_runs_the_cross_product_and_writes_tidy_results(tmp_path):
@@ -95,3 +96,22 @@ def test_a_variant_lays_its_settings_over_the_base_settings():
     (_, off), (_, full) = sweep.experiments()
     assert off.settings == {"model": {"beta_c": 0.0}, "train": {"lr": 0.01}}
     assert full.settings == settings
+
+
+def test_a_sweep_stopped_before_claiming_every_folder_resumes(tmp_path, capsys):
+    out = tmp_path / "sweep"
+    argv = ["--scenario", "crowd_noise_0.1", "--quick", "--methods", "cv", "--no-record"]
+    argv += ["--set", "train.lr=0.001,0.002", "--out", str(out), "--cache", str(tmp_path / "c")]
+    assert sweep_main(argv) == 0
+    second = out / "crowd_noise_0.1" / "train.lr_0.002"
+    before = json.loads((second / "metrics.json").read_text())["methods"]
+    for path in sorted(second.rglob("*"), reverse=True):  # as if killed before its claim
+        path.rmdir() if path.is_dir() else path.unlink()
+    assert sweep_main([*argv, "--resume"]) == 0
+    assert json.loads((second / "metrics.json").read_text())["methods"] == before
+    (second / "config.json").unlink()  # ours, unfinished, with a file of the user's in it
+    (second / "notes.txt").write_text("mine")
+    capsys.readouterr()
+    assert sweep_main([*argv, "--resume"]) == 2
+    assert "notes.txt" in capsys.readouterr().err
+    assert (second / "notes.txt").read_text() == "mine"
