@@ -150,15 +150,18 @@ def run_job(
 ) -> JobResult:
     """Train one method with one seed through the curriculum, in ``job.folder(out)``.
 
-    With ``resume``, a finished job is read back and an unfinished one continues after its last
-    task checkpoint. The job's recording (the first seed's, when recorded) is written under a
-    temporary name and renamed when the job is complete.
+    With ``resume``, a finished job is read back (run again if its recording is missing) and an
+    unfinished one continues after its last task checkpoint. The job's recording (the first
+    seed's, when recorded) is written under a temporary name and renamed when it is complete.
     """
     torch.set_num_threads(threads)
     folder = job.folder(out)
     identity = job_identity(job, config, inputs)
+    drawn = config.record and job.seed_index == 0
     if resume and (folder / "result.json").exists():
-        return JobResult.load(job, folder, identity)
+        if not drawn or (folder / "recording.rrd").exists():
+            return JobResult.load(job, folder, identity)
+        resume = False  # finished, but its recording is lost: run it again to draw it
     observers = [] if on_event is None else [on_event]
     names = [t.name for t in inputs.tasks]
     logs = make_loggers(loggers, folder, config.epochs, names)

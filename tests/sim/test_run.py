@@ -294,3 +294,15 @@ def test_a_full_or_read_only_disk_is_one_line(tmp_path):
     read_only = in_private_mount(tmp_path, "ro,size=200k", command)
     assert read_only.returncode == 2 and "Traceback" not in read_only.stderr
     assert read_only.stderr.strip().splitlines()[-1].endswith("Read-only file system")
+
+
+def test_a_finished_job_whose_recording_is_lost_is_drawn_again_on_resume(tmp_path):
+    argv = ["--scenario", "crowd_noise_0.1", "--quick", "--methods", "cv,finetune"]
+    argv += ["--out", str(tmp_path / "run"), "--cache", str(tmp_path / "cache")]
+    assert main(argv) == 0
+    metrics = (tmp_path / "run" / "metrics.json").read_text()
+    lost = tmp_path / "run" / "jobs" / "finetune" / "seed_0" / "recording.rrd"
+    lost.unlink()
+    assert main([*argv, "--resume"]) == 0
+    assert lost.stat().st_size > 0 and (tmp_path / "run" / "recording.rrd").stat().st_size > 0
+    assert json.loads((tmp_path / "run" / "metrics.json").read_text()) == json.loads(metrics)
