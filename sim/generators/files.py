@@ -9,7 +9,8 @@ proportion to its rows. Nothing is simulated; knobs describe the recording.
 
 from __future__ import annotations
 
-import hashlib
+import itertools
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -18,6 +19,7 @@ import numpy as np
 
 from c2inet.data import OBS_LEN, PRED_LEN
 from c2inet.errors import InputError, quote
+from c2inet.files import file_digest
 from c2inet.options import check_range
 from sim.data import SPLITS, Domain, Scene
 from sim.generators.base import Generator
@@ -26,6 +28,7 @@ from sim.stats import motion_stats, proximity_stats
 MAX_COORDINATE = 1e6  # metres: beyond it a coordinate is a unit error, and statistics overflow
 MAX_CELLS = 2_000_000  # frames x agents of one dense scene (32 MB); larger ones are cut in time
 WINDOW = OBS_LEN + PRED_LEN
+CHUNK_LINES = 1 << 17  # lines parsed at a time (about 4 MB of text)
 
 
 @dataclass(frozen=True)
@@ -86,26 +89,48 @@ def read_trajectory_file(path: Path, split_gaps: bool = False) -> list[Scene]:
 
 
 def _rows(path: Path) -> np.ndarray:
-    """(rows, 5): frame, agent, x, y and the line number of every row of the file."""
+    """(rows, 5): frame, agent, x, y and the line number of every row of the file, read in one
+    pass of ``CHUNK_LINES`` lines at a time: the text is never held whole."""
+    parts = []
     try:
-        text = path.read_text(encoding="utf-8")
+        with path.open(encoding="utf-8") as file:  # universal newlines: CRLF is a line end
+            for start in itertools.count(1, CHUNK_LINES):
+                lines = list(itertools.islice(file, CHUNK_LINES))
+                if not lines:
+                    break
+                parts.append(_chunk_rows(path, start, lines))
     except (OSError, UnicodeDecodeError) as error:
         raise InputError(f"{path}: cannot read: {error}") from None
-    lines = text.splitlines()  # tolerates CRLF
-    numbers = np.array([n for n, line in enumerate(lines, start=1) if line.strip()], dtype=float)
-    if not len(numbers):
+    rows = np.concatenate(parts) if parts else np.empty((0, 5))
+    if not len(rows):
         raise InputError(f"{path}: no trajectory rows")
-    try:  # the fast path; a file it refuses is read line by line for the exact error
-        values = np.loadtxt(lines, ndmin=2, comments=None)
-    except ValueError:
-        values = None
-    if values is None or values.shape != (len(numbers), 4):
-        _first_bad_line(path, lines)
+    return rows
+
+
+def _chunk_rows(path: Path, start: int, lines: list[str]) -> np.ndarray:
+    """The rows of lines ``start``, ``start + 1``, ... (blank ones skipped), validated."""
+    with warnings.catch_warnings():  # a chunk of blank lines is no data, and no warning
+        warnings.simplefilter("ignore", UserWarning)
+        try:  # the fast path; a chunk it refuses is read line by line for the exact error
+            values = np.loadtxt(lines, ndmin=2, comments=None)
+        except ValueError:
+            values = None
+    numbers = np.arange(start, start + len(lines))
+    if values is None or len(values) != len(lines):  # blank lines, or an error to place
+        kept = [bool(line.strip()) for line in lines]
+        numbers, lines = (
+            numbers[kept],
+            [line for line, keep in zip(lines, kept, strict=True) if keep],
+        )
+        if not lines:
+            return np.empty((0, 5))
+    if values is None or values.shape != (len(lines), 4):
+        _first_bad_line(path, numbers, lines)
 
     def where(bad: np.ndarray) -> tuple[str, str]:
         """The first bad row's place (file:line) and its line's text."""
-        number = int(numbers[np.argmax(bad)])
-        return f"{path}:{number}", lines[number - 1]
+        first = int(np.argmax(bad))
+        return f"{path}:{numbers[first]}", lines[first]
 
     finite = np.isfinite(values).all(1)
     if not finite.all():
@@ -121,12 +146,10 @@ def _rows(path: Path) -> np.ndarray:
     return np.column_stack([values, numbers])
 
 
-def _first_bad_line(path: Path, lines: list[str]) -> None:
+def _first_bad_line(path: Path, numbers: np.ndarray, lines: list[str]) -> None:
     """Raise the error of the first line that is not four numbers."""
-    for number, line in enumerate(lines, start=1):
+    for number, line in zip(numbers.tolist(), lines, strict=True):
         fields = line.split()
-        if not fields:
-            continue
         where = f"{path}:{number}"
         if len(fields) != 4:
             raise InputError(f"{where}: expected 4 columns (frame agent x y), got {len(fields)}")
@@ -211,11 +234,13 @@ class FilesGenerator(Generator):
 
     @classmethod
     def content_key(cls, knobs: dict[str, Any]) -> dict[str, Any]:
-        return {
-            path: hashlib.sha256(Path(path).read_bytes()).hexdigest()
-            for split in SPLITS
-            for path in knobs[split]
-        }
+        return {path: file_digest(Path(path)) for split in SPLITS for path in knobs[split]}
+
+    @classmethod
+    def memory_bytes(cls, knobs: dict[str, Any], splits) -> int:
+        """Six times the files' size: their rows as arrays (about 40 bytes a row of 25 to 40
+        characters), sorted, and the scenes; 4.4 times measured on a 42 MB file."""
+        return 6 * sum(Path(path).stat().st_size for split in SPLITS for path in knobs[split])
 
     def rollout(self, knobs: dict[str, Any], seed, frames: int) -> Scene:
         scenes = read_trajectory_file(Path(knobs["test"][0]), knobs["split_gaps"])

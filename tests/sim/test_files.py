@@ -10,6 +10,7 @@ import pytest
 from c2inet.errors import InputError
 from sim.domains import build_domain
 from sim.families import SCENARIOS_DIR
+from sim.generators import files
 from sim.generators.files import read_trajectory_file
 from sim.scenario import parse_scenario
 
@@ -147,3 +148,28 @@ def test_a_track_with_a_gap_is_an_error_or_two_tracks(tmp_path):
     first, later = read_trajectory_file(path, split_gaps=True)
     assert first.agent_ids.tolist() == [7, 8] and later.agent_ids.tolist() == [9]  # a new id
     np.testing.assert_array_equal(later.positions[:, 0], [[4, 0], [5, 0]])
+
+
+def test_a_file_is_read_in_chunks_that_keep_its_line_numbers(tmp_path, monkeypatch):
+    """Chunks of three lines: blank lines and a chunk of blanks only are counted, and an error
+    in a later chunk names its own line."""
+    monkeypatch.setattr(files, "CHUNK_LINES", 3)
+    rows = [f"{10 * t} 1 {0.1 * t:.1f} 0\n" for t in range(8)]
+    text = "".join(rows[:3]) + "\n\n\n\n" + "".join(rows[3:])
+    (scene,) = read_trajectory_file(write(tmp_path, text))
+    assert scene.positions.shape == (8, 1, 2)
+    whole = files._rows(write(tmp_path, text, "a.txt"))
+    assert whole[:, 4].tolist() == [1, 2, 3, 8, 9, 10, 11, 12]  # lines 4 to 7 are blank
+    with pytest.raises(InputError, match=r"t.txt:11: non-numeric"):
+        read_trajectory_file(write(tmp_path, text.replace("60 1 0.6", "60 1 x")))
+
+
+def test_the_memory_budget_covers_recorded_files(tmp_path):
+    (tmp_path / "scene.txt").write_text("".join(f"{t} 1 {t} 0\n" for t in range(40)))
+    (tmp_path / "mine.toml").write_text(
+        'generator = "files"\n[values.a]\ntrain = ["scene.txt"]\ntest = ["scene.txt"]\n'
+    )
+    spec = parse_scenario("mine_a", [tmp_path])[0]
+    with pytest.raises(InputError, match=r"domain mine_a: generating it needs about .* memory"):
+        build_domain(spec, 0, memory_budget=1e-6)  # a kilobyte
+    assert build_domain(spec, 0, memory_budget=1.0).scenes["train"]
