@@ -204,6 +204,35 @@ def test_one_process_at_a_time_holds_a_run_folder(tmp_path):
     assert (run / "config.json").exists()
 
 
+def claim_at_once(run: str, barrier, answers) -> None:
+    """One of two processes claiming ``run`` at the same instant; its answer goes to ``answers``
+    and it lives (holding what it claimed) until the other has tried too."""
+    config = ExperimentConfig("crowd_noise_0.1", methods=("cv",), quick=True, record=False)
+    barrier.wait()
+    try:
+        claim(Path(run), config, Execution())
+        answers.put("claimed")
+    except InputError as error:
+        answers.put(f"refused: {error}")
+    barrier.wait()
+
+
+def test_two_runs_claiming_one_folder_at_once_get_one_claim(tmp_path):
+    """Issue 26, item 6, as a race: the two claims meet at a barrier."""
+    import multiprocessing
+
+    context = multiprocessing.get_context("spawn")
+    barrier, answers = context.Barrier(2), context.Queue()
+    args = (str(tmp_path / "run"), barrier, answers)
+    racers = [context.Process(target=claim_at_once, args=args) for _ in range(2)]
+    for racer in racers:
+        racer.start()
+    results = sorted(answers.get(timeout=120) for _ in racers)
+    for racer in racers:
+        racer.join(timeout=60)
+    assert results[0] == "claimed" and results[1].startswith("refused: "), results
+
+
 def test_resume_removes_the_temporary_files_of_interrupted_writes(tmp_path):
     config = ExperimentConfig("crowd_noise_0.1", methods=("cv",), quick=True, record=False)
     run = tmp_path / "run"
