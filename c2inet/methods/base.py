@@ -13,7 +13,9 @@ are found by :func:`discover`; :mod:`c2inet.checker` checks each against the con
 from __future__ import annotations
 
 import importlib
+import importlib.metadata
 import pkgutil
+import sys
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -153,13 +155,34 @@ def count_floats(value: Any) -> int:
     return 0
 
 
+PLUGINS = "c2inet.methods"  # the entry-point group through which other packages add methods
+
+
 def discover() -> dict[str, type[Method]]:
-    """Every method: the modules of ``c2inet.methods`` register their classes on import."""
+    """Every method: the modules of ``c2inet.methods`` register their classes on import, and so
+    do other packages' entry points of the group ``c2inet.methods`` (name = the method's name,
+    value = its class, e.g. ``mine = "my_package.methods:Mine"``)."""
     import c2inet.methods
 
     for module in pkgutil.iter_modules(c2inet.methods.__path__):
         importlib.import_module(f"c2inet.methods.{module.name}")
+    for entry in importlib.metadata.entry_points(group=PLUGINS):
+        if entry.name not in METHODS:
+            _load_plugin(entry)
     return METHODS
+
+
+def _load_plugin(entry: importlib.metadata.EntryPoint) -> None:
+    """Register an entry point's method; a broken plugin is a warning, not the end of every
+    command."""
+    try:
+        cls = entry.load()
+        if not (isinstance(cls, type) and issubclass(cls, Method)):
+            raise TypeError(f"{entry.value} is not a subclass of c2inet.methods.base.Method")
+    except Exception as error:  # a third party's code: whatever it raises
+        print(f"warning: method plugin {entry.name!r} skipped: {error}", file=sys.stderr)
+        return
+    METHODS[cls.name] = cls
 
 
 def get_method(name: str) -> type[Method]:

@@ -6,11 +6,13 @@ Example: ``pytest tests/c2inet/test_methods.py``
 """
 
 import random
+from importlib.metadata import EntryPoint
 
 import pytest
 
 from c2inet.checker import MethodCheckError, check_method
-from c2inet.methods.base import discover
+from c2inet.methods import base
+from c2inet.methods.base import PLUGINS, discover, get_method
 from c2inet.methods.ewc import EWC
 from c2inet.methods.finetune import Finetune
 from c2inet.methods.lwf import LwF
@@ -112,3 +114,19 @@ def test_the_checker_catches_a_trainer_that_leaks_later_tasks(monkeypatch):
     monkeypatch.setattr(ContinualTrainer, "earlier_training_data", leaky)
     with pytest.raises(MethodCheckError, match="the last task.s training data"):
         check_method(METHODS["joint"])
+
+
+def test_a_method_of_another_package_joins_through_its_entry_point(monkeypatch, capsys):
+    """A user's package declares ``shrinking = "plugin_method:Shrinking"`` in the entry-point
+    group ``c2inet.methods``: the registry finds it, the checker passes it; a broken entry point
+    is one warning and the rest still works."""
+    entries = [
+        EntryPoint("shrinking", "plugin_method:Shrinking", PLUGINS),
+        EntryPoint("broken", "plugin_method:Nowhere", PLUGINS),
+    ]
+    monkeypatch.setattr(base.importlib.metadata, "entry_points", lambda group: entries)
+    monkeypatch.setattr(base, "METHODS", dict(base.METHODS))  # the plugin leaves with the test
+    methods = discover()
+    assert "shrinking" in methods and "broken" not in methods
+    assert "method plugin 'broken' skipped" in capsys.readouterr().err
+    check_method(get_method("shrinking"))

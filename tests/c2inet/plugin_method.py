@@ -1,0 +1,20 @@
+"""A method from outside the package, as a user's own package would ship one: found through
+the ``c2inet.methods`` entry-point group (``tests/c2inet/test_methods.py``).
+
+Its one hook, ``before_task``, halves the learning rate at every new task.
+Example: ``--methods shrinking``, once a package declaring the entry point is installed
+"""
+
+from c2inet.methods.finetune import Finetune
+
+
+class Shrinking(Finetune, register=False):
+    """Fine-tuning whose learning rate halves at every new task (``before_task``)."""
+
+    name = "shrinking"
+
+    def before_task(self, ctx):
+        super().before_task(ctx)
+        if ctx.index > 0:
+            for group in ctx.optimiser.param_groups:
+                group["lr"] *= 0.5
