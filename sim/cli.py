@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import os
 import sys
+import tomllib
 from pathlib import Path
+from typing import Any
 
 from c2inet.backbones import BACKBONES
-from c2inet.errors import InputError, did_you_mean
+from c2inet.errors import InputError, did_you_mean, one_line
 from c2inet.methods.base import discover
 from sim.experiment.backends import BACKENDS
 from sim.experiment.config import DEFAULT_METHODS, Execution, parse_settings
@@ -54,6 +57,12 @@ def parser(
         default=[],
         help="extra folder of family TOML files (repeatable)",
     )
+    p.add_argument(
+        "--config",
+        type=Path,
+        metavar="FILE",
+        help="options from a TOML file or a run's config.json; flags given override it",
+    )
     return p
 
 
@@ -95,14 +104,84 @@ def add_threads(p: argparse.ArgumentParser) -> None:
 def parse(
     p: argparse.ArgumentParser, argv: list[str], scenario_required: bool = True
 ) -> argparse.Namespace | None:
-    """Parse ``argv``; for ``--list``, print the listing and return None."""
+    """Parse ``argv`` over the options of ``--config FILE``, if given; for ``--list``, print the
+    listing and return None."""
+    early = argparse.ArgumentParser(add_help=False)
+    early.add_argument("--config", type=Path)
+    path = early.parse_known_args(argv)[0].config
+    defaults, settings = config_defaults(path, p) if path is not None else ({}, {})
+    repeatable = {a.dest for a in p._actions if isinstance(a, argparse._AppendAction)}
+    p.set_defaults(**{d: v for d, v in defaults.items() if d not in repeatable})
     args = p.parse_args(argv)
+    for dest in repeatable & set(defaults):  # the file's, unless the flag was given
+        if not getattr(args, dest):
+            value = defaults[dest]
+            setattr(args, dest, value if isinstance(value, list) else [value])
+    args.config_settings = settings
     if args.list:
         print(listing(args.list, args.scenarios_dir))
         return None
     if scenario_required and not args.scenario:
         p.error("the following arguments are required: --scenario")
     return args
+
+
+CONFIG_KEYS = {  # a configuration file's key -> the option (argparse dest) that takes it
+    **{name: name for name in ("scenario", "seed", "seeds", "epochs", "k", "backbone", "quick")},
+    **{name: name for name in ("jobs", "backend", "threads", "workers", "cache", "rerun")},
+    "methods": "methods",
+    "scenarios_dir": "scenarios_dir",
+    "memory_budget": "memory_budget",
+    "ray_address": "ray_address",
+    "record": "no_record",
+    "loggers": "logger",
+}
+IGNORED = {"settings", "model", "train"}  # settings are merged apart; the rest is a run card's
+
+
+def read_config(path: Path) -> dict[str, Any]:
+    """A configuration file as one flat table: TOML, or JSON such as a run's ``config.json``
+    (whose ``experiment`` and ``execution`` tables are merged)."""
+    try:
+        text = path.read_text(encoding="utf-8")
+        data = json.loads(text) if path.suffix == ".json" else tomllib.loads(text)
+    except (OSError, UnicodeDecodeError, ValueError) as error:
+        raise InputError(f"--config {path}: cannot read it: {one_line(str(error))}") from None
+    if not isinstance(data, dict):
+        raise InputError(f"--config {path}: expected a table of options")
+    if isinstance(data.get("experiment"), dict):
+        data = {**data.get("execution", {}), **data["experiment"]}
+    return data
+
+
+def config_defaults(path: Path, p: argparse.ArgumentParser) -> tuple[dict, dict]:
+    """The parser's defaults from ``path``, as if typed (so checked by the same types), and the
+    file's ``--set`` settings. A key this command has no option for is skipped; a key no
+    command knows is an error."""
+    data, dests = read_config(path), {a.dest for a in p._actions}
+    defaults = {}
+    for key, value in data.items():
+        if key in IGNORED:
+            continue
+        if key not in CONFIG_KEYS:
+            known = did_you_mean(key, CONFIG_KEYS)
+            raise InputError(f"--config {path}: unknown option {key!r}{known}")
+        dest = CONFIG_KEYS[key]
+        if dest not in dests or value is None:
+            continue
+        if key == "record":
+            value = not value
+        elif key in ("methods", "loggers") and isinstance(value, list):
+            value = ",".join(map(str, value))
+        elif key == "scenarios_dir":
+            value = [Path(v) for v in value]
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            value = str(value)  # argparse types a string default: the flag's own checks apply
+        defaults[dest] = value
+    settings = data.get("settings", {})
+    if not isinstance(settings, dict) or not all(isinstance(v, dict) for v in settings.values()):
+        raise InputError(f"--config {path}: settings must be tables of SCOPE.KEY = VALUE")
+    return defaults, settings
 
 
 def listing(what: list[str], extra_dirs: list[Path]) -> str:
@@ -203,7 +282,11 @@ def add_experiment_options(
 
 def experiment_options(args: argparse.Namespace, grid: bool = False) -> dict:
     """The fields of ``ExperimentConfig`` that :func:`add_experiment_options`' options give
-    (``grid``: ``--set`` is a sweep's grid, not the configuration's settings)."""
+    (``grid``: ``--set`` is a sweep's grid, not the configuration's settings). Settings of a
+    ``--config`` file come first; ``--set`` overrides them key by key."""
+    settings = {scope: dict(values) for scope, values in args.config_settings.items()}
+    for scope, values in ({} if grid else parse_settings(args.set)).items():
+        settings.setdefault(scope, {}).update(values)
     return {
         "methods": method_names(args.methods),
         "seeds": args.seeds,
@@ -213,7 +296,7 @@ def experiment_options(args: argparse.Namespace, grid: bool = False) -> dict:
         "backbone": args.backbone,
         "quick": args.quick,
         "scenarios_dir": tuple(args.scenarios_dir),
-        "settings": {} if grid else parse_settings(args.set),
+        "settings": settings,
         "record": not getattr(args, "no_record", True),
     }
 

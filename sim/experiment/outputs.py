@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any
 import torch
 
 from c2inet.errors import InputError
-from c2inet.files import writable_folder, write_text_atomic
+from c2inet.files import file_digest, writable_folder, write_text_atomic
 from c2inet.report import (
     compare,
     markdown_report,
@@ -184,6 +184,18 @@ def lock_run(out: Path) -> None:
 def mark_run(out: Path) -> None:
     """Write the run marker, before anything else of the run."""
     write_text_atomic(out / MARKER, "a run folder of c2i-testbed: --overwrite may remove it\n")
+
+
+def config_file(argv: list[str]) -> dict[str, str] | None:
+    """The ``--config`` file of a command line, with its SHA-256 (None without one); its options
+    are in the run card already, as the configuration they gave."""
+    for i, arg in enumerate(argv):
+        name, _, value = arg.partition("=")
+        if name == "--config":
+            path = Path(value or (argv[i + 1] if i + 1 < len(argv) else ""))
+            digest = file_digest(path) if path.is_file() else None
+            return {"path": str(path.resolve()), "sha256": digest}
+    return None
 
 
 def remove_leftovers(out: Path) -> list[Path]:
@@ -343,6 +355,7 @@ def write_outputs(
         "versions": versions(),
         "domains": [d.summary() for d in curriculum.domains],
         "windows": {t.name: _window_counts(t) for t in curriculum.inputs.tasks},
+        "config_file": config_file(argv),
     }
     card = json.dumps(run_card, indent=1)
     write_text_atomic(out / "run_card.json", card + "\n")

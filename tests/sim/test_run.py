@@ -306,3 +306,35 @@ def test_a_finished_job_whose_recording_is_lost_is_drawn_again_on_resume(tmp_pat
     assert main([*argv, "--resume"]) == 0
     assert lost.stat().st_size > 0 and (tmp_path / "run" / "recording.rrd").stat().st_size > 0
     assert json.loads((tmp_path / "run" / "metrics.json").read_text()) == json.loads(metrics)
+
+
+def test_a_config_file_gives_the_options_and_flags_override_it(tmp_path, capsys):
+    (tmp_path / "exp.toml").write_text(
+        'scenario = "crowd_noise_0.1"\nmethods = ["cv", "finetune"]\nquick = true\n'
+        "record = false\nepochs = 1\n[settings.train]\nlr = 0.01\nbatch_scenes = 4\n"
+    )
+    cache = ["--cache", str(tmp_path / "cache")]
+    first = tmp_path / "first"
+    assert main(["--config", str(tmp_path / "exp.toml"), "--out", str(first), *cache]) == 0
+    saved = json.loads((first / "config.json").read_text())["experiment"]
+    assert saved["methods"] == ["cv", "finetune"] and saved["epochs"] == 1
+    assert saved["settings"] == {"train": {"lr": 0.01, "batch_scenes": 4}} and not saved["record"]
+    card = json.loads((first / "run_card.json").read_text())
+    assert card["config_file"]["path"] == str(tmp_path / "exp.toml")
+    # a run's own config.json runs it again; a flag and a --set override what it says
+    again = tmp_path / "again"
+    argv = ["--config", str(first / "config.json"), "--methods", "finetune"]
+    assert main([*argv, "--set", "train.lr=0.02", "--out", str(again), *cache]) == 0
+    saved = json.loads((again / "config.json").read_text())["experiment"]
+    assert saved["methods"] == ["finetune"]
+    assert saved["settings"] == {"train": {"lr": 0.02, "batch_scenes": 4}}
+    (tmp_path / "bad.toml").write_text("epoch = 3\n")
+    capsys.readouterr()
+    assert refused(capsys, "--config", str(tmp_path / "bad.toml")) == [
+        f"error: --config {tmp_path / 'bad.toml'}: unknown option 'epoch'; did you mean 'epochs'?"
+    ]
+    (tmp_path / "bad.toml").write_text('scenario = "crowd_noise_0.1"\nepochs = -3\n')
+    assert (
+        "argument --epochs: -3 is not between 0"
+        in refused(capsys, "--config", str(tmp_path / "bad.toml"))[-1]
+    )
