@@ -29,7 +29,8 @@ SWITCHES = {  # one change per row
     # the model's design choices (issue 22)
     "bottleneck": ["model.decoder_input=latents"],
     "past-reconstruction": ["model.beta_x=1"],
-    "mi-floor-0.5": ["model.mi_floor_c=0.5"],
+    "no-mi-floor": ["model.mi_floor_c=0"],
+    "c-not-detached": ["model.c_detached=false"],
     "no-free-bits": ["model.free_bits_c=0"],
     "z-not-given-c": ["model.z_given_c=false"],
     "c-per-scene": ["model.c_per=scene"],

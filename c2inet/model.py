@@ -72,9 +72,12 @@ class ModelConfig:
     z_given_c: bool = True  # Q(Z|X,C) as Eq 16; off: Q(Z|X)
     past_from: str = "z"  # the past reconstruction reads z alone, or [z, c] ("zc")
     free_bits_c: float = 8.0  # KL_C below this many nats (1 per dimension) costs nothing
-    mi_floor_c: float = 0.0  # MI(X; C) of a batch below this many nats is penalised (liveness)
-    mi_weight: float = 10.0  # the penalty per missing nat
-    c_detached: bool = False  # Q(C|X) reads the context through a stopped gradient
+    # liveness without a seed lottery or a cost in plasticity (docs/c2inet-study.md): a batch
+    # whose MI(X; C) falls below mi_floor_c nats pays mi_weight per missing nat, and Q(C|X)
+    # reads the context through a stopped gradient, so C's terms cannot reshape the backbone
+    mi_floor_c: float = 1.0
+    mi_weight: float = 10.0
+    c_detached: bool = True
     residual: bool = True  # decoder steps change the last displacement (constant-velocity prior)
 
     def __post_init__(self):
@@ -392,7 +395,7 @@ class C2INetModel(Predictor):
         ``task_kl``), with ``free_bits_c`` nats per C free; KL_Z is Q(Z|X,C)'s against N(0, I).
         With ``mi_floor_c`` a batch whose MI(X; C) falls below it pays ``mi_weight`` per missing
         nat: with the context beside it the decoder needs nothing from C, so C stays live only
-        when asked to; off by default, since a live C cost plasticity (docs/c2inet-study.md).
+        when asked to; with ``c_detached`` that costs no plasticity (docs/c2inet-study.md).
         """
         cfg = self.config
         anchors, hold_decoder, hold_encoder = self._protection()

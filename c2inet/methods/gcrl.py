@@ -2,11 +2,12 @@
 
 GCRL's own network: the decoder sees [z, c] alone (``decoder_input="latents"``), the past is
 reconstructed from [z, c] (E1, weight 1), Z is read from X alone and held to N(0, I), and no
-free bits; GCRL's prior on the variant latent (here C) is one mixture of ``components``
-Gaussians with learnt means, variances and weights, trained with the model on every task in
-turn: nothing protects it from forgetting. Test-time C comes from the posterior, as GCRL
-evaluates. Left out: the RealNVP coupling flows of GCRL's ``--coupling`` variant (this is its
-learnable-prior variant, the one without flows). No hooks. Example: ``--methods gcrl``
+free bits, MI floor or stopped gradient into C; GCRL's prior on the variant latent (here C)
+is one mixture of ``components`` Gaussians with learnt means, variances and weights, trained
+with the model on every task in turn: nothing protects it from forgetting. Test-time C comes
+from the posterior, as GCRL evaluates. Left out: the RealNVP coupling flows of GCRL's
+``--coupling`` variant (this is its learnable-prior variant, the one without flows). No hooks.
+Example: ``--methods gcrl``
 """
 
 from __future__ import annotations
@@ -45,6 +46,8 @@ class GCRL(Method):
             past_from="zc",
             beta_x=1.0,
             free_bits_c=0.0,
+            mi_floor_c=0.0,
+            c_detached=False,
         )
         prior = LearnablePrior(config.c_dim, self.options.components, learn_weights=True)
         return C2INetModel(config, prior=prior)
