@@ -1,8 +1,9 @@
 """The data model: windows, splits, the Parquet cache and the exports."""
 
+import contextlib
+import io
 import json
 import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -59,10 +60,14 @@ def test_hash_changes_with_knobs_seed_and_sizes(family_dir):
     assert domain_hash(a, 0) == domain_hash(parse_scenario("tiny_noise_0.1", [family_dir])[0], 0)
 
 
-def run_generate(*args):
-    return subprocess.run(
-        [sys.executable, "-m", "sim.generate", *args], capture_output=True, text=True, check=False
-    )
+def run_generate(*args: str) -> subprocess.CompletedProcess:
+    """``python -m sim.generate ARGS``, run in this process (its imports paid once)."""
+    from sim.generate import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(list(args))
+    return subprocess.CompletedProcess(args, code, out.getvalue(), err.getvalue())
 
 
 def test_generate_takes_data_settings_and_refuses_other_scopes(tmp_path, family_dir):

@@ -182,17 +182,20 @@ def test_bad_options_give_one_error_line(capsys, args, message):
     assert len(lines) == 1 and lines[0].startswith("error:") and message in lines[0]
 
 
-def test_list_shows_families_methods_and_knobs():
-    families = run("--list", "families")
-    assert families.returncode == 0 and "crowd_radius" in families.stdout
-    assert "eth_ucy" in families.stdout and "radius" in families.stdout
-    methods = run("--list", "methods")
-    assert all(m in methods.stdout for m in ("c2inet-online", "ewc", "cv", "joint"))
-    knobs = run("--list", "knobs", "crowd_noise")
-    assert (
-        "agents" in knobs.stdout and "noise" in knobs.stdout and "<- the scenario" in knobs.stdout
-    )
-    help_text = run("--help").stdout
+def test_list_shows_families_methods_and_knobs(capsys):
+    def listed(*args: str) -> str:
+        assert main(list(args)) == 0
+        return capsys.readouterr().out
+
+    families = listed("--list", "families")
+    assert "crowd_radius" in families and "eth_ucy" in families and "radius" in families
+    methods = listed("--list", "methods")
+    assert all(m in methods for m in ("c2inet-online", "ewc", "cv", "joint"))
+    knobs = listed("--list", "knobs", "crowd_noise")
+    assert "agents" in knobs and "noise" in knobs and "<- the scenario" in knobs
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    help_text = capsys.readouterr().out
     assert "examples:" in help_text and "``" not in help_text and "--list" in help_text
 
 
