@@ -130,17 +130,19 @@ def test_parallel_jobs_give_the_same_metrics(tmp_path, reference, backend):
     assert card["backend"] == backend and card["jobs"] == 2
 
 
-def test_each_run_gets_a_fresh_folder_and_latest_points_to_it(tmp_path):
-    cache, cv = tmp_path / "cache", ("--methods", "cv", "--no-record")  # folders, not training
-    first = finish(start(None, cache, *cv, cwd=tmp_path))
-    second = finish(start(None, cache, *cv, cwd=tmp_path))
-    assert first.returncode == 0 and second.returncode == 0, second.stderr
+def test_each_run_gets_a_fresh_folder_and_latest_points_to_it(tmp_path, monkeypatch, capsys):
+    from sim.run import main
+
+    monkeypatch.chdir(tmp_path)  # runs/ lies in the current folder
+    argv = [*QUICK, "--cache", str(tmp_path / "cache"), "--methods", "cv", "--no-record"]
+    assert main(argv) == 0 and main(argv) == 0  # folders, not training
     root = tmp_path / "runs" / "crowd_noise_0.1..0.3"
     runs = sorted(p for p in root.iterdir() if p.name != "latest")
     assert len(runs) == 2 and all((p / "metrics.json").exists() for p in runs)
     assert (root / "latest").resolve() == runs[-1].resolve()
-    again = finish(start(None, cache, *cv, "--resume", cwd=tmp_path))
-    assert again.returncode == 0 and str(runs[-1].relative_to(tmp_path)) in again.stdout
+    capsys.readouterr()
+    assert main([*argv, "--resume"]) == 0
+    assert str(runs[-1].relative_to(tmp_path)) in capsys.readouterr().out
 
 
 def test_a_folder_is_only_replaced_when_it_holds_a_run(tmp_path):

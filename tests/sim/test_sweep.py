@@ -1,8 +1,6 @@
 """``python -m sim.sweep``: every combination runs, tidy results, a combined report, resume."""
 
 import json
-import subprocess
-import sys
 
 import pyarrow.parquet as pq
 import pytest
@@ -16,9 +14,6 @@ from sim.sweep import main as sweep_main
 def test_a_sweep_runs_the_cross_product_and_writes_tidy_results(tmp_path):
     out = tmp_path / "sweep"
     command = [
-        sys.executable,
-        "-m",
-        "sim.sweep",
         "--scenario",
         "crowd_noise_0.1,0.2",
         "--scenario",
@@ -37,8 +32,7 @@ def test_a_sweep_runs_the_cross_product_and_writes_tidy_results(tmp_path):
         "--out",
         str(out),
     ]
-    done = subprocess.run(command, capture_output=True, text=True, check=False)
-    assert done.returncode == 0, done.stderr
+    assert sweep_main(command) == 0
     table = pq.read_table(out / "results.parquet").to_pydict()
     assert tuple(table) == COLUMNS
     metrics = {"ade", "fde", "ade_k1", "fde_k1", "ade_agent", "fde_agent"} & set(table["metric"])
@@ -62,8 +56,7 @@ def test_a_sweep_runs_the_cross_product_and_writes_tidy_results(tmp_path):
     assert ft["train.lr=0.003"] != ft["train.lr=0.01"]
     report = (out / "report.md").read_text()
     assert report.count("| crowd_") == 8 and "± " in report
-    again = subprocess.run([*command, "--resume"], capture_output=True, text=True, check=False)
-    assert again.returncode == 0, again.stderr
+    assert sweep_main([*command, "--resume"]) == 0
     assert pq.read_table(out / "results.parquet").to_pydict() == table
 
 
