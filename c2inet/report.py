@@ -158,10 +158,11 @@ def table_rows(
     averaged over seen tasks after each task, then forgetting.
 
     ``metric`` ``ade`` gives best of K, ``ade_k1`` the point prediction, ``ade_draw`` one random
-    draw.
+    draw. A row that ends above constant velocity's final average (when ``cv`` ran) says so.
     """
     header = ["method", *column_labels(labels), "forgetting final", "forgetting worst"]
     rows = [header]
+    floor = methods["cv"][f"avg_seen_{metric}"][-1] if "cv" in methods else float("inf")
     for name, m in methods.items():
         for variant in ["", *m.get("variants", [])]:
             key = f"{metric}_{variant}" if variant else metric
@@ -173,6 +174,8 @@ def table_rows(
             ]
             final, worst = m[f"forgetting_final_{key}"], m[f"forgetting_worst_{key}"]
             label = f"{name}, {variant.replace('_', ' from ', 1)}" if variant else name
+            if m[f"avg_seen_{key}"][-1] > floor:
+                label += " (worse than cv)"
             rows.append([label, *cells, f"{final:+.3f}", f"{worst:+.3f}"])
     return rows
 

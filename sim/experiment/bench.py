@@ -15,17 +15,15 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pyarrow as pa
-import pyarrow.parquet as pq
 
 from c2inet.errors import InputError
-from c2inet.files import write_atomic, write_text_atomic
+from c2inet.files import write_text_atomic
 from c2inet.methods.base import get_method
 from c2inet.report import REFERENCE, compare, comparison_rows, markdown_table
 from c2inet.significance import ALPHA
 from sim.experiment.config import Execution, ExperimentConfig
-from sim.experiment.outputs import claim
-from sim.experiment.sweep import COLUMNS, layered, plan, run_together, tidy_rows
+from sim.experiment.outputs import COLUMNS, claim, tidy_rows, write_results
+from sim.experiment.sweep import layered, plan, run_together
 from sim.experiment.tuning import TuneConfig, run_tuning
 from viz.figures import leaderboard_figure
 
@@ -137,7 +135,7 @@ def run_bench(
     for (_, config, *_), (_, results) in zip(planned, done, strict=True):
         for column, values in tidy_rows("tuned", config, results).items():
             rows[column] += values
-    write_atomic(out / "results.parquet", lambda tmp: pq.write_table(pa.table(rows), tmp))
+    write_results(out / "results.parquet", rows)
     write_text_atomic(out / "leaderboard.json", json.dumps(board, indent=1) + "\n")
     write_text_atomic(out / "leaderboard.md", leaderboard_markdown(board))
     leaderboard_figure(board, out / "leaderboard.png")

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import fcntl
 import hashlib
+import itertools
 import json
 import os
 import platform
@@ -26,10 +27,12 @@ from importlib import metadata
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import pyarrow as pa
+import pyarrow.parquet as pq
 import torch
 
 from c2inet.errors import InputError
-from c2inet.files import file_digest, writable_folder, write_text_atomic
+from c2inet.files import file_digest, writable_folder, write_atomic, write_text_atomic
 from c2inet.report import (
     compare,
     markdown_report,
@@ -303,6 +306,30 @@ def summarise_jobs(config: ExperimentConfig, results: list[JobResult]) -> dict[s
     return out
 
 
+COLUMNS = ("scenario", "method", "seed", "setting", "after_task", "on_task", "metric", "value")
+
+
+def tidy_rows(label: str, config: ExperimentConfig, results: list[JobResult]) -> dict[str, list]:
+    """Every matrix cell of every job, one row each."""
+    rows: dict[str, list] = {c: [] for c in COLUMNS}
+    for done in results:
+        tasks = done.result.tasks
+        for metric, matrix in done.result.matrices.items():
+            for (i, after), (j, on) in itertools.product(enumerate(tasks), enumerate(tasks)):
+                cell = (config.scenario, done.job.method, config.seed + done.job.seed_index)
+                for column, value in zip(
+                    COLUMNS, (*cell, label, after, on, metric, float(matrix[i, j])), strict=True
+                ):
+                    rows[column].append(value)
+    return rows
+
+
+def write_results(path: Path, rows: dict[str, list]) -> None:
+    """``results.parquet``: tidy rows (``COLUMNS``), one per matrix cell of every job."""
+    table = pa.table(rows)
+    write_atomic(path, lambda tmp: pq.write_table(table, tmp))
+
+
 def write_outputs(
     out: Path,
     config: ExperimentConfig,
@@ -312,6 +339,7 @@ def write_outputs(
     truth,
     wall: float,
     argv: list[str],
+    label: str = "default",
 ) -> dict[str, Any]:
     """metrics.json, matrices, run card, report, figures and the merged recording; returns the
     metrics. ``truth``: the run's own recorder (None when nothing is recorded)."""
@@ -329,6 +357,7 @@ def write_outputs(
         "comparison": compare(summary),
     }
     write_text_atomic(out / "metrics.json", json.dumps(metrics, indent=1) + "\n")
+    write_results(out / "results.parquet", tidy_rows(label, config, results))
     for name, result in summary.items():
         first = next(r.result for r in results if r.job.method == name)
         for key in first.matrices:

@@ -16,19 +16,23 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-import pyarrow as pa
-import pyarrow.parquet as pq
 from tqdm import tqdm
 
 from c2inet.errors import InputError
-from c2inet.files import write_atomic, write_text_atomic
+from c2inet.files import write_text_atomic
 from sim.experiment.backends import run_jobs
 from sim.experiment.config import Execution, ExperimentConfig, Job, parse_settings, parse_value
 from sim.experiment.curriculum import Curriculum
 from sim.experiment.jobs import JobResult, follow, prepare, record_truth, run_job
-from sim.experiment.outputs import TRUTH_PART, claim, run_root, write_outputs
-
-COLUMNS = ("scenario", "method", "seed", "setting", "after_task", "on_task", "metric", "value")
+from sim.experiment.outputs import (
+    COLUMNS,
+    TRUTH_PART,
+    claim,
+    run_root,
+    tidy_rows,
+    write_outputs,
+    write_results,
+)
 
 
 @dataclass(frozen=True)
@@ -100,21 +104,6 @@ def _sweep_job(item: tuple[int, Job], experiments: list[tuple], **options) -> Jo
     return run_job(job, *experiments[index], **options)
 
 
-def tidy_rows(label: str, config: ExperimentConfig, results: list[JobResult]) -> dict[str, list]:
-    """Every matrix cell of every job, one row each."""
-    rows: dict[str, list] = {c: [] for c in COLUMNS}
-    for done in results:
-        tasks = done.result.tasks
-        for metric, matrix in done.result.matrices.items():
-            for (i, after), (j, on) in itertools.product(enumerate(tasks), enumerate(tasks)):
-                cell = (config.scenario, done.job.method, config.seed + done.job.seed_index)
-                for column, value in zip(
-                    COLUMNS, (*cell, label, after, on, metric, float(matrix[i, j])), strict=True
-                ):
-                    rows[column].append(value)
-    return rows
-
-
 def combined_report(entries: list[tuple[str, ExperimentConfig, dict]]) -> str:
     """Final scores of every (scenario, setting, method), mean ± std over seeds."""
     lines = [
@@ -159,8 +148,7 @@ def run_sweep(
         entries.append((label, config, metrics))
         for column, values in tidy_rows(label, config, results).items():
             rows[column] += values
-    table = pa.table(rows)
-    write_atomic(out / "results.parquet", lambda tmp: pq.write_table(table, tmp))
+    write_results(out / "results.parquet", rows)
     write_text_atomic(out / "report.md", combined_report(entries))
     return entries
 
@@ -202,10 +190,12 @@ def run_together(
         )
     wall = time.perf_counter() - started
     done = []
-    for i, (_, config, folder, curriculum) in enumerate(planned):
+    for i, (label, config, folder, curriculum) in enumerate(planned):
         mine = [r for (index, _), r in zip(items, results, strict=True) if index == i]
         path = folder / TRUTH_PART
         truth = record_truth(config, curriculum, path, None) if config.record else None
-        metrics = write_outputs(folder, config, execution, curriculum, mine, truth, wall, argv)
+        metrics = write_outputs(
+            folder, config, execution, curriculum, mine, truth, wall, argv, label
+        )
         done.append((metrics, mine))
     return done

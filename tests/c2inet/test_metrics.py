@@ -91,6 +91,10 @@ def test_summary_averages_seeds_and_names_each_variant():
     assert out["forgetting_final_ade_per_seed"] == [1.0, 1.0]
     rows = table_rows({"m": out}, ["a", "b"])
     assert [r[0] for r in rows[1:]] == ["m", "m, c from posterior"]
+    # beside constant velocity (final average 1.8): the row that ends above it says so
+    cv = {**out, "variants": [], "avg_seen_ade": [1.0, 1.8]}
+    rows = table_rows({"m": out, "cv": cv}, ["a", "b"])
+    assert [r[0] for r in rows[1:]] == ["m (worse than cv)", "m, c from posterior", "cv"]
 
 
 def test_diagnostics_average_over_seeds_and_keep_the_first_queue():

@@ -6,6 +6,7 @@ import math
 import subprocess
 import sys
 
+import pyarrow.parquet as pq
 import pytest
 
 from sim.run import main
@@ -44,6 +45,9 @@ def test_quick_run_writes_every_output(tmp_path):
     assert "c2inet-online, c from responsible" in result.stdout
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["scenario"] == "crowd_noise_0.1..0.3" and metrics["k"] == 5
+    tidy = pq.read_table(out / "results.parquet").to_pydict()  # every matrix cell, one row each
+    ade = [v for k, v in zip(tidy["metric"], tidy["value"], strict=True) if k == "ade"]
+    assert len(ade) == 3 * 9 and set(tidy["method"]) == {"c2inet-online", "finetune", "cv"}
     assert metrics["tasks"] == ["crowd_noise_0.1", "crowd_noise_0.2", "crowd_noise_0.3"]
     for name in ("c2inet-online", "finetune", "cv"):
         m = metrics["methods"][name]

@@ -7,7 +7,8 @@ import pytest
 
 from c2inet.errors import InputError
 from sim.experiment import ExperimentConfig
-from sim.experiment.sweep import COLUMNS, SweepConfig, parse_grid
+from sim.experiment.outputs import COLUMNS
+from sim.experiment.sweep import SweepConfig, parse_grid
 from sim.sweep import main as sweep_main
 
 
