@@ -20,6 +20,7 @@ from c2inet.errors import InputError
 from c2inet.trainer import Task
 from sim.data import SPLITS, cut_windows, window_members
 from sim.domains import build_domain, rollout_scene
+from sim.experiment.config import Execution, ExperimentConfig
 from sim.families import Splits
 from sim.generators import Generator, get_generator
 from sim.scenario import DomainSpec, parse_scenario
@@ -47,6 +48,21 @@ class Curriculum:
     inputs: JobInputs
     rollouts: dict[str, tuple]
     labels: list[str]
+
+
+def experiment_tasks(
+    specs: list[DomainSpec], config: ExperimentConfig, execution: Execution
+) -> tuple[list[Task], list]:
+    """:func:`make_tasks` with the seed and sizes of ``config`` and where and how
+    ``execution`` generates (cache, workers, memory budget)."""
+    return make_tasks(
+        specs,
+        config.seed,
+        config.quick,
+        execution.cache,
+        execution.workers,
+        execution.memory_budget,
+    )
 
 
 def make_tasks(

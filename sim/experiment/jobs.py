@@ -29,8 +29,8 @@ from sim.experiment.curriculum import (
     SAMPLE_SCENES,
     Curriculum,
     JobInputs,
+    experiment_tasks,
     make_showcases,
-    make_tasks,
 )
 from viz.colours import method_colour
 from viz.loggers import make_loggers
@@ -44,14 +44,7 @@ def prepare(config: ExperimentConfig, execution: Execution) -> Curriculum:
     """Generate (or read from the content-hashed cache) every domain of the curriculum."""
     specs = config.specs
     writable_folder(execution.cache, "--cache")
-    tasks, domains = make_tasks(
-        specs,
-        config.seed,
-        config.quick,
-        execution.cache,
-        execution.workers,
-        execution.memory_budget,
-    )
+    tasks, domains = experiment_tasks(specs, config, execution)
     drawn = config.record or execution.rerun is not None
     showcases, rollouts = make_showcases(specs, tasks, config.seed) if drawn else ([], {})
     one_family = len({s.family.name for s in specs}) == 1

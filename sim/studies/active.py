@@ -33,7 +33,7 @@ from c2inet.trainer import Task, evaluate
 from sim.domains import domain_seed
 from sim.experiment import Execution, ExperimentConfig
 from sim.experiment.cells import cell_identity, run_cells
-from sim.experiment.curriculum import knob_grid, make_tasks, scene_windows
+from sim.experiment.curriculum import experiment_tasks, knob_grid, scene_windows
 from sim.generators import child_seed
 from sim.scenario import DomainSpec
 from sim.studies.base import Study, register
@@ -152,14 +152,7 @@ def run_active(
     specs = grid_specs(config)
     if config.quick:
         options = replace(options, rounds=min(options.rounds, 3), scenes=min(options.scenes, 6))
-    tasks, _ = make_tasks(
-        specs,
-        config.seed,
-        config.quick,
-        execution.cache,
-        execution.workers,
-        execution.memory_budget,
-    )
+    tasks, _ = experiment_tasks(specs, config, execution)
     if any(t.val is None for t in tasks):
         raise InputError(f"scenario {config.scenario!r}: every grid value needs validation scenes")
     method = config.methods[0]

@@ -28,7 +28,7 @@ from c2inet.stream import ShiftDetector, StreamLearner
 from sim.domains import domain_seed
 from sim.experiment import Execution, ExperimentConfig
 from sim.experiment.cells import cell_identity, run_cells
-from sim.experiment.curriculum import knob_grid, make_tasks, scene_windows
+from sim.experiment.curriculum import experiment_tasks, knob_grid, scene_windows
 from sim.generators import child_seed
 from sim.scenario import DomainSpec
 from sim.studies.base import Study, register
@@ -128,14 +128,7 @@ def run_drift(
     specs = drift_specs(config)
     if config.quick:
         options = replace(options, scenes=min(options.scenes, 24), chunks=min(options.chunks, 3))
-    tasks, _ = make_tasks(
-        specs,
-        config.seed,
-        config.quick,
-        execution.cache,
-        execution.workers,
-        execution.memory_budget,
-    )
+    tasks, _ = experiment_tasks(specs, config, execution)
     probes = [task.test for task in tasks]
     probe_values = [float(spec.value) for spec in specs]
     chunks, middles = drift_stream(specs, options, config.seed)

@@ -30,7 +30,7 @@ from c2inet.trainer import ContinualTrainer, Task, evaluate
 from sim.data import Domain
 from sim.experiment import Execution, ExperimentConfig
 from sim.experiment.cells import cell_identity, run_cells
-from sim.experiment.curriculum import make_tasks
+from sim.experiment.curriculum import experiment_tasks
 from sim.scenario import parse_scenario
 from sim.stats import PROFILES, realised_summary, relative_difference, scene_profiles
 from sim.studies.base import Study, register
@@ -167,14 +167,7 @@ def fidelity_report(
             f"{scenario!r} {len(generated_specs)}: they pair by position, so give as many"
         )
     specs = generated_specs + reference_specs
-    tasks, domains = make_tasks(
-        specs,
-        config.seed,
-        config.quick,
-        execution.cache,
-        execution.workers,
-        execution.memory_budget,
-    )
+    tasks, domains = experiment_tasks(specs, config, execution)
     n = len(generated_specs)
     pairs = []
     for i in range(n):
