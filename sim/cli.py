@@ -136,7 +136,6 @@ CONFIG_KEYS = {  # a configuration file's key -> the option (argparse dest) that
     "record": "no_record",
     "loggers": "logger",
 }
-IGNORED = {"settings", "model", "train"}  # settings are merged apart; the rest is a run card's
 
 
 def read_config(path: Path) -> dict[str, Any]:
@@ -161,7 +160,7 @@ def config_defaults(path: Path, p: argparse.ArgumentParser) -> tuple[dict, dict]
     data, dests = read_config(path), {a.dest for a in p._actions}
     defaults = {}
     for key, value in data.items():
-        if key in IGNORED:
+        if key == "settings":  # merged with --set apart
             continue
         if key not in CONFIG_KEYS:
             known = did_you_mean(key, CONFIG_KEYS)
