@@ -8,10 +8,11 @@ SCENARIO ?= crowd_noise_0.1..0.6
 # pip compiles bytecode on one core; compileall does it on all (22 s here against pip's 30 s more),
 # and without it every test process compiled torch's modules anew (tests 8:10 against 4:50).
 # A few third-party files are for newer Pythons and do not compile: pip skips them too (|| true).
+# Packages' own test folders are never imported here: skipping them saves a third (34 -> 22 s).
 $(VENV)/.installed: pyproject.toml
 	test -x $(PY) || python3 -m venv $(VENV)
 	$(PY) -m pip install --quiet --disable-pip-version-check --no-compile -e '.[test]'
-	$(PY) -m compileall -q -j 0 $(VENV)/lib > /dev/null || true
+	$(PY) -m compileall -q -j 0 -x '/tests/' $(VENV)/lib > /dev/null || true
 	touch $@
 
 venv: $(VENV)/.installed
