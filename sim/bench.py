@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
             bench, out, execution_of(args), args.resume, args.overwrite, [*p.prog.split(), *argv]
         )
     except KeyboardInterrupt:
-        return interrupted(out, resumable=True)
+        return interrupted(out)
     print(leaderboard_markdown(board))
     print(f"wrote {out}: open leaderboard.md; every number in results.parquet", file=sys.stderr)
     return 0

@@ -16,6 +16,7 @@ from c2inet.errors import InputError, did_you_mean, one_line
 from c2inet.methods.base import discover
 from sim.experiment.backends import BACKENDS
 from sim.experiment.config import DEFAULT_METHODS, Execution, parse_settings
+from sim.experiment.outputs import config_path
 from sim.families import available_families, load_family
 from sim.generators import get_generator
 from viz.cli import bounded_float, bounded_int, plain_parser
@@ -106,9 +107,7 @@ def parse(
 ) -> argparse.Namespace | None:
     """Parse ``argv`` over the options of ``--config FILE``, if given; for ``--list``, print the
     listing and return None."""
-    early = argparse.ArgumentParser(add_help=False)
-    early.add_argument("--config", type=Path)
-    path = early.parse_known_args(argv)[0].config
+    path = config_path(argv)
     defaults, settings = config_defaults(path, p) if path is not None else ({}, {})
     repeatable = {a.dest for a in p._actions if isinstance(a, argparse._AppendAction)}
     p.set_defaults(**{d: v for d, v in defaults.items() if d not in repeatable})
@@ -126,16 +125,13 @@ def parse(
     return args
 
 
-CONFIG_KEYS = {  # a configuration file's key -> the option (argparse dest) that takes it
-    **{name: name for name in ("scenario", "seed", "seeds", "epochs", "k", "backbone", "quick")},
-    **{name: name for name in ("jobs", "backend", "threads", "workers", "cache", "rerun")},
-    "methods": "methods",
-    "scenarios_dir": "scenarios_dir",
-    "memory_budget": "memory_budget",
-    "ray_address": "ray_address",
-    "record": "no_record",
-    "loggers": "logger",
-}
+SAME_NAME = (
+    *("scenario", "methods", "seed", "seeds", "epochs", "k", "backbone", "quick", "scenarios_dir"),
+    *("jobs", "backend", "threads", "workers", "cache", "rerun", "memory_budget", "ray_address"),
+)
+# a configuration file's key -> the option (argparse dest) that takes it
+CONFIG_KEYS = {**{name: name for name in SAME_NAME}, "record": "no_record", "loggers": "logger"}
+SWITCHES = ("quick", "record")  # true or false, not text
 
 
 def read_config(path: Path) -> dict[str, Any]:
@@ -149,7 +145,8 @@ def read_config(path: Path) -> dict[str, Any]:
     if not isinstance(data, dict):
         raise InputError(f"--config {path}: expected a table of options")
     if isinstance(data.get("experiment"), dict):
-        data = {**data.get("execution", {}), **data["experiment"]}
+        execution = data.get("execution")
+        data = {**(execution if isinstance(execution, dict) else {}), **data["experiment"]}
     return data
 
 
@@ -168,12 +165,14 @@ def config_defaults(path: Path, p: argparse.ArgumentParser) -> tuple[dict, dict]
         dest = CONFIG_KEYS[key]
         if dest not in dests or value is None:
             continue
+        if key in SWITCHES and not isinstance(value, bool):
+            raise InputError(f"--config {path}: {key} = {value!r}: expected true or false")
         if key == "record":
             value = not value
         elif key in ("methods", "loggers") and isinstance(value, list):
             value = ",".join(map(str, value))
         elif key == "scenarios_dir":
-            value = [Path(v) for v in value]
+            value = [Path(v) for v in (value if isinstance(value, list) else [value])]
         if isinstance(value, (int, float)) and not isinstance(value, bool):
             value = str(value)  # argparse types a string default: the flag's own checks apply
         defaults[dest] = value
@@ -221,14 +220,13 @@ def listing(what: list[str], extra_dirs: list[Path]) -> str:
 def add_experiment_options(
     p: argparse.ArgumentParser,
     methods: str = ",".join(DEFAULT_METHODS),
-    jobs: bool = True,
     grid: bool = False,
     record: bool = True,
     loggers: bool = True,
 ) -> None:
     """The options of every command that trains: what to train, the domain cache, ``--set``,
-    ``--overwrite``; with ``jobs`` (the training runs as jobs) also ``--resume``, the backend
-    and ``--jobs``, with ``loggers`` (the jobs are the engine's runs) ``--logger`` and with
+    ``--overwrite``, ``--resume``, the backend and ``--jobs``; with ``loggers`` (the jobs are
+    the engine's runs) ``--logger`` and with
     ``record`` (they write recordings) ``--no-record``. ``methods``: the default of
     ``--methods``; ``grid``: ``--set`` lists values to sweep."""
     p.add_argument(
@@ -258,8 +256,6 @@ def add_experiment_options(
     )
     add_workers(p)
     add_threads(p)
-    if not jobs:
-        return
     p.add_argument("--resume", action="store_true", help="continue the run in --out (or latest)")
     p.add_argument("--backend", choices=BACKENDS, default="local", help="where jobs run")
     p.add_argument(
@@ -332,10 +328,9 @@ def command_name(module: str) -> str:
     return invoked if invoked.startswith("c2i-") else f"python -m {module}"
 
 
-def interrupted(out: Path, resumable: bool) -> int:
+def interrupted(out: Path) -> int:
     """Tell what a Ctrl-C kept; the shell's exit code of an interrupted command."""
-    how = "add --resume to continue in" if resumable else "finished parts are not kept; rerun into"
-    print(f"\ninterrupted: {how} {out}", file=sys.stderr)
+    print(f"\ninterrupted: add --resume to continue in {out}", file=sys.stderr)
     return INTERRUPTED
 
 

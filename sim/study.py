@@ -64,7 +64,7 @@ def run_study(study: Study, argv: list[str]) -> int:
     try:
         report = study.run(args, config, execution, out, [*p.prog.split(), *argv])
     except KeyboardInterrupt:
-        return interrupted(out, resumable=True)
+        return interrupted(out)
     name = study.write(report, out)
     print(study.markdown(report))
     print(f"wrote {out}: open {name}.md (the table) and {name}.png; {name}.json", file=sys.stderr)

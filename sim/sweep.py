@@ -53,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
             [*p.prog.split(), *argv],
         )
     except KeyboardInterrupt:
-        return interrupted(args.out, resumable=True)
+        return interrupted(args.out)
     print(combined_report(entries))
     print(f"wrote {args.out}: open report.md; every number in results.parquet", file=sys.stderr)
     return 0

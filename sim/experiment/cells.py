@@ -95,7 +95,7 @@ def run_cells(
         results = run_jobs(
             _run_cell,
             todo,
-            (fn, folder and str(folder), identity, execution.threads, *shared),
+            (fn, None if folder is None else str(folder), identity, execution.threads, *shared),
             execution.backend,
             execution.jobs,
             execution.ray_address,

@@ -11,6 +11,7 @@ the point prediction's ``ade_k1``/``fde_k1``, one random draw's ``ade_draw``/``f
 
 from __future__ import annotations
 
+import argparse
 import fcntl
 import hashlib
 import itertools
@@ -189,16 +190,20 @@ def mark_run(out: Path) -> None:
     write_text_atomic(out / MARKER, "a run folder of c2i-testbed: --overwrite may remove it\n")
 
 
+def config_path(argv: list[str]) -> Path | None:
+    """The ``--config FILE`` of a command line, read as the command's own parser reads it."""
+    early = argparse.ArgumentParser(add_help=False)
+    early.add_argument("--config", type=Path)
+    return early.parse_known_args(argv)[0].config
+
+
 def config_file(argv: list[str]) -> dict[str, str] | None:
     """The ``--config`` file of a command line, with its SHA-256 (None without one); its options
     are in the run card already, as the configuration they gave."""
-    for i, arg in enumerate(argv):
-        name, _, value = arg.partition("=")
-        if name == "--config":
-            path = Path(value or (argv[i + 1] if i + 1 < len(argv) else ""))
-            digest = file_digest(path) if path.is_file() else None
-            return {"path": str(path.resolve()), "sha256": digest}
-    return None
+    path = config_path(argv)
+    if path is None:
+        return None
+    return {"path": str(path.resolve()), "sha256": file_digest(path) if path.is_file() else None}
 
 
 def remove_leftovers(out: Path) -> list[Path]:
@@ -314,9 +319,9 @@ def tidy_rows(label: str, config: ExperimentConfig, results: list[JobResult]) ->
     rows: dict[str, list] = {c: [] for c in COLUMNS}
     for done in results:
         tasks = done.result.tasks
+        cell = (config.scenario, done.job.method, config.seed + done.job.seed_index)
         for metric, matrix in done.result.matrices.items():
             for (i, after), (j, on) in itertools.product(enumerate(tasks), enumerate(tasks)):
-                cell = (config.scenario, done.job.method, config.seed + done.job.seed_index)
                 for column, value in zip(
                     COLUMNS, (*cell, label, after, on, metric, float(matrix[i, j])), strict=True
                 ):

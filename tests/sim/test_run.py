@@ -330,16 +330,23 @@ def test_a_config_file_gives_the_options_and_flags_override_it(tmp_path, capsys)
     assert card["config_file"]["path"] == str(tmp_path / "exp.toml")
     # a run's own config.json runs it again; a flag and a --set override what it says
     again = tmp_path / "again"
-    argv = ["--config", str(first / "config.json"), "--methods", "finetune"]
+    argv = [f"--config={first / 'config.json'}", "--methods", "finetune"]
     assert main([*argv, "--set", "train.lr=0.02", "--out", str(again), *cache]) == 0
     saved = json.loads((again / "config.json").read_text())["experiment"]
     assert saved["methods"] == ["finetune"]
+    card = json.loads((again / "run_card.json").read_text())
+    assert card["config_file"]["path"] == str(first / "config.json")
     assert saved["settings"] == {"train": {"lr": 0.02, "batch_scenes": 4}}
     (tmp_path / "bad.toml").write_text("epoch = 3\n")
     capsys.readouterr()
     assert refused(capsys, "--config", str(tmp_path / "bad.toml")) == [
         f"error: --config {tmp_path / 'bad.toml'}: unknown option 'epoch'; did you mean 'epochs'?"
     ]
+    (tmp_path / "bad.toml").write_text('quick = "false"\n')  # text, which argparse took as true
+    assert (
+        "quick = 'false': expected true or false"
+        in refused(capsys, "--config", str(tmp_path / "bad.toml"))[-1]
+    )
     (tmp_path / "bad.toml").write_text('scenario = "crowd_noise_0.1"\nepochs = -3\n')
     assert (
         "argument --epochs: -3 is not between 0"
