@@ -78,6 +78,9 @@ class ModelConfig:
     mi_floor_c: float = 1.0
     mi_weight: float = 10.0
     c_detached: bool = True
+    # the share of agents whose decoder sees no context in a training step (classifier-free
+    # style): the decoder must then predict from [z, c] alone, so C's value moves predictions
+    context_dropout: float = 0.0
     residual: bool = True  # decoder steps change the last displacement (constant-velocity prior)
 
     def __post_init__(self):
@@ -98,6 +101,7 @@ class ModelConfig:
         require(self, 1, "latent_dim", "z_dim", "c_dim", "n_mc")
         require(self, 0, "beta_c", "beta_z", "beta_x", "free_bits_c", "mi_floor_c", "mi_weight")
         require(self, 0, "likelihood_std", open_low=True)
+        require(self, 0, "context_dropout", high=1)
 
 
 class LossOutput(NamedTuple):
@@ -340,6 +344,16 @@ class C2INetModel(Predictor):
             parts.insert(0, post.context.expand(len(z), *post.context.shape))
         return torch.cat(parts, -1)
 
+    def drop_context(self, cond: torch.Tensor) -> torch.Tensor:
+        """The training condition with the context zeroed for a random ``context_dropout`` share
+        of agents (the same agents in every sample); the identity when the option is off."""
+        share = self.config.context_dropout
+        if not share or not self.sees_context(self.config):
+            return cond
+        width = BACKBONES[self.config.backbone].context_dim
+        keep = (torch.rand(cond.shape[1], 1) >= share).to(cond.dtype)
+        return torch.cat([cond[..., :width] * keep, cond[..., width:]], -1)
+
     def per_scene(self, per_c: torch.Tensor, batch: Batch) -> torch.Tensor:
         """A figure per C (..., N or B) as a per-scene figure (..., B)."""
         return per_c if self.c_per_scene else batch.per_scene_mean(per_c)
@@ -401,7 +415,7 @@ class C2INetModel(Predictor):
         anchors, hold_decoder, hold_encoder = self._protection()
         post = self.posteriors(batch)
         z, c, mz, lz = self.latents(batch, post, max(k_train, cfg.n_mc), "posterior")
-        cond = self.conditions(batch, post, z, c)
+        cond = self.drop_context(self.conditions(batch, post, z, c))
         pred, anchor_future = self._decode(batch, cond[:k_train], anchors if hold_decoder else None)
         future = variety_loss(self.nll(batch, pred), batch)
         mc = cfg.n_mc
