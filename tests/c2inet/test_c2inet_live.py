@@ -1,5 +1,6 @@
 """Is every part of C2INet live? Each test fails if its mechanism were inert."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -261,6 +262,42 @@ def test_a_drawn_c_cannot_delete_the_past_from_the_decoders_input(decoder_input)
         for batch in (first, second)
     ]
     assert torch.allclose(*futures) == (decoder_input == "latents")
+
+
+def test_context_dropout_zeroes_the_context_of_a_share_of_agents_in_training_only():
+    """``context_dropout`` blanks the context (never [z, c]) of about its share of agents, the
+    same agents in every sample; it is the identity at 0 and never touches a prediction."""
+    width = 64  # STGAT's context
+    cond = torch.randn(3, 400, width + 16)
+    for share in (0.0, 0.5):
+        model = get_method("c2inet-online")(ModelConfig(context_dropout=share)).build_model()
+        assert model.backbone.context_dim == width
+        torch.manual_seed(0)
+        out = model.drop_context(cond)
+        blank = (out[..., :width] == 0).all(-1)  # (3, 400)
+        torch.testing.assert_close(out[..., width:], cond[..., width:])
+        assert (blank == blank[:1]).all()  # the same agents in every sample
+        assert abs(blank[0].float().mean().item() - share) < 0.08
+        kept = ~blank[0]
+        torch.testing.assert_close(out[:, kept], cond[:, kept])
+    batch = make_batch(toy_tasks(4)[0].train)
+    predictions = []
+    for share in (0.0, 0.5):
+        torch.manual_seed(0)
+        model = get_method("c2inet-online")(ModelConfig(context_dropout=share)).build_model()
+        torch.manual_seed(1)
+        predictions.append(model.predict(batch, 2))
+    torch.testing.assert_close(*predictions)
+    losses = []
+    with torch.no_grad():  # the residual decoder starts at constant velocity, blind to its input
+        model.backbone.decoder.out.weight.normal_(0, 0.1)
+    for share in (0.0, 1.0):  # the training loss is where it acts
+        model.config = dataclasses.replace(model.config, context_dropout=share)
+        torch.manual_seed(2)
+        losses.append(model.loss(batch).parts["nll"])
+    assert losses[0] != losses[1]
+    with pytest.raises(ValueError, match="context_dropout"):
+        ModelConfig(context_dropout=1.5)
 
 
 def test_past_reconstruction_trains_the_past_decoder_only_when_weighted():
