@@ -1,4 +1,6 @@
-"""Real trajectories from text files in the ETH-UCY format (``frame agent x y`` per line).
+"""Real trajectories from recordings: ETH-UCY text (``frame agent x y`` per line, also the
+converted SDD text of SocialVAE-style repositories), raw Stanford Drone annotations, TrajNet++
+ndjson (readers of the last two in :mod:`sim.generators.formats`).
 
 Each value of a files family maps to train, optional val, and test file patterns (globs relative
 to the family TOML, or absolute). Tracks stay sparse: each group of tracks whose frame ranges
@@ -23,12 +25,14 @@ from c2inet.files import file_digest
 from c2inet.options import check_range
 from sim.data import SPLITS, Domain, Scene
 from sim.generators.base import Generator
+from sim.generators.formats import sdd_rows, trajnet_scenes
 from sim.stats import motion_stats, proximity_stats
 
 MAX_COORDINATE = 1e6  # metres: beyond it a coordinate is a unit error, and statistics overflow
 MAX_CELLS = 2_000_000  # frames x agents of one dense scene (32 MB); larger ones are cut in time
 WINDOW = OBS_LEN + PRED_LEN
 CHUNK_LINES = 1 << 17  # lines parsed at a time (about 4 MB of text)
+FORMATS = ("ethucy", "sdd", "trajnetpp")
 
 
 @dataclass(frozen=True)
@@ -40,15 +44,40 @@ class FilesKnobs:
     test: tuple[str, ...] = ()
     dt: float = 0.4  # s per frame step of the files
     split_gaps: bool = False  # a track that skips frames continues as a new track
+    format: str = "ethucy"  # ethucy (also SocialVAE's SDD text), sdd (raw annotations), trajnetpp
+    scale: float = 1.0  # metres per unit of the file: each SDD video's own, for its pixels
+    every: int = 1  # keep the frames whose id is a multiple (12: SDD's 30 fps as 2.5 fps)
+    labels: tuple[str, ...] = ("Pedestrian",)  # sdd: the classes kept (Biker, Cart, Car...)
 
     def __post_init__(self):
         if not self.train or not self.test:
             raise InputError("a files domain needs 'train' and 'test' file patterns")
         check_range("dt", self.dt, 0, 10, open_low=True)
+        check_range("scale", self.scale, 0, 1e3, open_low=True)
+        check_range("every", self.every, 1, 1000)
+        if self.format not in FORMATS:
+            raise InputError(f"format {self.format!r}: expected one of {', '.join(FORMATS)}")
 
 
-def read_trajectory_file(path: Path, split_gaps: bool = False) -> list[Scene]:
-    """Parse and validate one ETH-UCY text file into scenes; errors name the file and line.
+def read_recording(path: Path, knobs: dict[str, Any]) -> list[Scene]:
+    """The scenes of one file as a files domain's resolved ``knobs`` say to read it."""
+    if knobs.get("format") == "trajnetpp":
+        return trajnet_scenes(path, knobs.get("scale", 1.0))
+    reading = {key: knobs[key] for key in ("format", "scale", "every", "labels") if key in knobs}
+    return read_trajectory_file(path, knobs["split_gaps"], **reading)
+
+
+def read_trajectory_file(
+    path: Path,
+    split_gaps: bool = False,
+    format: str = "ethucy",
+    scale: float = 1.0,
+    every: int = 1,
+    labels: tuple[str, ...] = ("Pedestrian",),
+) -> list[Scene]:
+    """Parse and validate one ETH-UCY text file (or raw SDD annotations, ``format="sdd"``) into
+    scenes, keeping the frames whose id is a multiple of ``every`` and multiplying coordinates
+    by ``scale``; errors name the file and line.
 
     Tracks stay sparse: each agent keeps its own frame range, and agents whose ranges overlap
     (directly or through others) form one scene, so memory grows with the rows, not with the
@@ -57,7 +86,15 @@ def read_trajectory_file(path: Path, split_gaps: bool = False) -> list[Scene]:
     With ``split_gaps`` a track that skips frames continues as a new track (a new id) instead of
     being an error.
     """
-    data = _rows(path)
+    data = _rows(path, format, tuple(labels))
+    data = data[data[:, 0] % every == 0] if every > 1 else data
+    if not len(data):
+        raise InputError(f"{path}: no rows left on frames that are multiples of {every}")
+    data[:, 2:4] *= scale
+    far = np.abs(data[:, 2:4]).max(1) > MAX_COORDINATE
+    if far.any():
+        line = int(data[np.argmax(far), 4])
+        raise InputError(f"{path}:{line}: coordinate beyond {MAX_COORDINATE:g} m")
     data = data[np.lexsort((data[:, 0], data[:, 1]))]  # by agent, then frame
     frame, agent, line = data[:, 0], data[:, 1], data[:, 4].astype(int)
     track = _tracks(path, frame, agent, line, split_gaps)
@@ -88,7 +125,7 @@ def read_trajectory_file(path: Path, split_gaps: bool = False) -> list[Scene]:
     return scenes
 
 
-def _rows(path: Path) -> np.ndarray:
+def _rows(path: Path, format: str = "ethucy", labels: tuple[str, ...] = ()) -> np.ndarray:
     """(rows, 5): frame, agent, x, y and the line number of every row of the file, read in one
     pass of ``CHUNK_LINES`` lines at a time: the text is never held whole."""
     parts = []
@@ -98,7 +135,10 @@ def _rows(path: Path) -> np.ndarray:
                 lines = list(itertools.islice(file, CHUNK_LINES))
                 if not lines:
                     break
-                parts.append(_chunk_rows(path, start, lines))
+                if format == "sdd":
+                    parts.append(sdd_rows(path, start, lines, labels))
+                else:
+                    parts.append(_chunk_rows(path, start, lines))
     except (OSError, UnicodeDecodeError) as error:
         raise InputError(f"{path}: cannot read: {error}") from None
     rows = np.concatenate(parts) if parts else np.empty((0, 5))
@@ -136,9 +176,6 @@ def _chunk_rows(path: Path, start: int, lines: list[str]) -> np.ndarray:
     if not finite.all():
         place, line = where(~finite)
         raise InputError(f"{place}: non-finite value in {quote(line.strip())}")
-    far = np.abs(values[:, 2:]).max(1) > MAX_COORDINATE
-    if far.any():
-        raise InputError(f"{where(far)[0]}: coordinate beyond {MAX_COORDINATE:g} m")
     whole = (values[:, 1] == np.round(values[:, 1])) & (np.abs(values[:, 1]) <= 2**53)
     if not whole.all():
         place, line = where(~whole)
@@ -208,7 +245,7 @@ def _components(first: np.ndarray, last: np.ndarray) -> list[np.ndarray]:
 
 
 class FilesGenerator(Generator):
-    """Recorded trajectories read from ETH-UCY-format text files."""
+    """Recorded trajectories read from ETH-UCY text, raw SDD annotations or TrajNet++ ndjson."""
 
     name = "files"
     seeded = False  # a recording is the same whatever the seed
@@ -217,7 +254,12 @@ class FilesGenerator(Generator):
 
     @classmethod
     def resolve(cls, knobs: FilesKnobs, base_dir: Path) -> dict[str, Any]:
+        """The knobs with each pattern's files; the reading options only where they differ
+        from ETH-UCY's, so an ETH-UCY domain keeps its cache key."""
         out: dict[str, Any] = {"dt": knobs.dt, "split_gaps": knobs.split_gaps}
+        for key in ("format", "scale", "every", "labels"):
+            if getattr(knobs, key) != getattr(FilesKnobs, key):
+                out[key] = getattr(knobs, key)
         for split in SPLITS:
             paths: list[str] = []
             for pattern in getattr(knobs, split):
@@ -243,15 +285,13 @@ class FilesGenerator(Generator):
         return 6 * sum(Path(path).stat().st_size for split in SPLITS for path in knobs[split])
 
     def rollout(self, knobs: dict[str, Any], seed, frames: int) -> Scene:
-        scenes = read_trajectory_file(Path(knobs["test"][0]), knobs["split_gaps"])
+        scenes = read_recording(Path(knobs["test"][0]), knobs)
         scene = max(scenes, key=lambda s: s.num_frames)
         return Scene(scene.positions[:frames], scene.agent_ids)
 
     def generate(self, name, family, knobs: dict[str, Any], splits, seed, workers=1) -> Domain:
         scenes = {
-            split: [
-                s for p in knobs[split] for s in read_trajectory_file(Path(p), knobs["split_gaps"])
-            ]
+            split: [s for path in knobs[split] for s in read_recording(Path(path), knobs)]
             for split in SPLITS
         }
         everything = [s for split in SPLITS for s in scenes[split]]

@@ -1,0 +1,114 @@
+"""Readers of the trajectory formats the field exchanges, beside ETH-UCY's ``frame agent x y``.
+
+- ``sdd``: the raw Stanford Drone annotations (``track xmin ymin xmax ymax frame lost occluded
+  generated "label"``, pixels at 30 fps): each box's centre, the chosen labels, lost boxes
+  dropped. The files generator then samples the frames and scales pixels to metres.
+- ``trajnetpp``: TrajNet++ ndjson (``{"scene": {"id", "p", "s", "e"}}`` and ``{"track": {"f",
+  "p", "x", "y"}}`` lines): one scene per scene record, its primary agent in the first column.
+
+The converted SDD text that SocialVAE-style repositories share is ETH-UCY's four columns in
+metres, read by the ETH-UCY reader itself. JSON is parsed, never unpickled.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from c2inet.errors import InputError, quote
+from sim.data import Scene
+
+SDD_COLUMNS = "track xmin ymin xmax ymax frame lost occluded generated label"
+
+
+def sdd_rows(path: Path, start: int, lines: list[str], labels: tuple[str, ...]) -> np.ndarray:
+    """(rows, 5): frame, track, box centre x and y (pixels), line number, of the kept boxes of
+    lines ``start``, ``start + 1``, ...: those whose label is in ``labels`` and not lost."""
+    rows = []
+    for number, line in enumerate(lines, start):
+        fields = line.split()
+        if not fields:
+            continue
+        if len(fields) != 10:
+            raise InputError(
+                f"{path}:{number}: expected 10 columns ({SDD_COLUMNS}), got {len(fields)}"
+            )
+        if fields[9].strip('"') not in labels or fields[6] != "0":
+            continue
+        try:
+            track, x0, y0, x1, y1, frame = (float(f) for f in fields[:6])
+        except ValueError:
+            text = quote(line.strip())
+            raise InputError(f"{path}:{number}: non-numeric value in {text}") from None
+        rows.append((frame, track, (x0 + x1) / 2, (y0 + y1) / 2, number))
+    out = np.array(rows, dtype=float).reshape(-1, 5)
+    bad = ~np.isfinite(out[:, :4]).all(1)
+    if bad.any():
+        raise InputError(f"{path}:{int(out[np.argmax(bad), 4])}: non-finite value")
+    return out
+
+
+def trajnet_scenes(path: Path, scale: float = 1.0) -> list[Scene]:
+    """The scenes of one TrajNet++ ndjson file: each scene record's frames ``s`` to ``e`` on the
+    file's frame grid, every track present in them, the primary agent ``p`` first."""
+    records, tracks = [], []
+    try:
+        with path.open(encoding="utf-8") as file:
+            for number, line in enumerate(file, 1):
+                if line.strip():
+                    _record(path, number, line, records, tracks)
+    except (OSError, UnicodeDecodeError) as error:
+        raise InputError(f"{path}: cannot read: {error}") from None
+    if not records or not tracks:
+        raise InputError(f"{path}: needs scene and track records (TrajNet++ ndjson)")
+    rows = np.array(tracks, dtype=float)
+    rows = rows[np.lexsort((rows[:, 1], rows[:, 0]))]  # by frame, then agent
+    frames = np.unique(rows[:, 0])
+    step = float(np.diff(frames).min()) if len(frames) > 1 else 1.0
+    scenes = []
+    for scene_id, primary, first, last, number in records:
+        lo = np.searchsorted(rows[:, 0], first, side="left")
+        inside = rows[lo : np.searchsorted(rows[:, 0], last, side="right")]
+        index = (inside[:, 0] - first) / step
+        if not np.allclose(index, np.round(index)):
+            raise InputError(f"{path}:{number}: scene {scene_id:g} is off the frame grid")
+        others = np.setdiff1d(inside[:, 1], [primary])
+        if len(others) == len(np.unique(inside[:, 1])):
+            raise InputError(f"{path}:{number}: scene {scene_id:g} lacks its agent {primary:g}")
+        agents = np.concatenate([[primary], others])
+        positions = np.full((int(round((last - first) / step)) + 1, len(agents), 2), np.nan)
+        column = np.searchsorted(others, inside[:, 1]) + 1
+        column[inside[:, 1] == primary] = 0
+        positions[np.round(index).astype(int), column] = inside[:, 2:4] * scale
+        scenes.append(Scene(positions, agents.astype(np.int64)))
+    return scenes
+
+
+def _record(path: Path, number: int, line: str, records: list, tracks: list) -> None:
+    """Append one ndjson line's scene or track record, or raise naming the line."""
+    where = f"{path}:{number}"
+    try:
+        record = json.loads(line)
+        if "track" in record:
+            t = record["track"]
+            row = tuple(float(t[key]) for key in ("f", "p", "x", "y"))
+            if not np.isfinite(row).all():
+                raise InputError(f"{where}: non-finite value in a track")
+            tracks.append(row)
+        elif "scene" in record:
+            s = record["scene"]
+            records.append((*(float(s[key]) for key in ("id", "p", "s", "e")), number))
+            if records[-1][3] < records[-1][2]:
+                raise InputError(f"{where}: scene ends (e) before it starts (s)")
+        else:
+            raise InputError(f"{where}: expected a 'scene' or a 'track' record")
+    except InputError:
+        raise
+    except json.JSONDecodeError as error:
+        raise InputError(f"{where}: not a JSON line ({error.msg})") from None
+    except KeyError as error:
+        raise InputError(f"{where}: record lacks the field {error}") from None
+    except (TypeError, ValueError, AttributeError):
+        raise InputError(f"{where}: malformed record {quote(line.strip())}") from None

@@ -1,0 +1,158 @@
+"""The formats the field exchanges, each on a small fixture written in it: raw Stanford Drone
+annotations, TrajNet++ ndjson, and SocialVAE's converted SDD text, through the files family."""
+
+import json
+
+import numpy as np
+import pytest
+
+from c2inet.errors import InputError
+from sim.domains import build_domain
+from sim.generators.files import read_trajectory_file
+from sim.generators.formats import trajnet_scenes
+from sim.scenario import parse_scenario
+
+SCALE = 0.04  # metres per pixel of the fixture's video
+
+
+def sdd_annotations(frames: int = 300) -> str:
+    """Raw SDD lines at 30 fps: pedestrian 0 walking 1 px a frame east, a biker, and pedestrian
+    2 walking north whose box is lost from frame 120 to 179."""
+    lines = []
+    for f in range(frames):
+        lines.append(f'0 {100 + f} 200 {110 + f} 220 {f} 0 0 0 "Pedestrian"')
+        lines.append(f'1 {300 + 3 * f} 50 {310 + 3 * f} 70 {f} 0 0 1 "Biker"')
+        lost = int(120 <= f < 180)
+        lines.append(f'2 400 {500 - f} 410 {520 - f} {f} {lost} 0 0 "Pedestrian"')
+    return "\n".join(lines) + "\n"
+
+
+def test_raw_sdd_keeps_pedestrian_box_centres_at_2_5_fps_in_metres(tmp_path):
+    path = tmp_path / "annotations.txt"
+    path.write_text(sdd_annotations())
+    read = {"format": "sdd", "scale": SCALE, "every": 12}
+    with pytest.raises(InputError, match="agent 2 breaks its uniform frame step 12"):
+        read_trajectory_file(path, **read)  # the lost boxes leave a gap
+    (scene,) = read_trajectory_file(path, split_gaps=True, **read)
+    assert scene.num_frames == 25  # frames 0, 12, ..., 288
+    assert 1 not in scene.agent_ids  # the biker
+    assert sorted(scene.agent_ids.tolist())[:2] == [0, 2] and len(scene.agent_ids) == 3
+    walker = scene.positions[:, scene.agent_ids.tolist().index(0)]
+    np.testing.assert_allclose(walker[0], [105 * SCALE, 210 * SCALE])
+    np.testing.assert_allclose(np.diff(walker, axis=0), [[12 * SCALE, 0]] * 24)  # 1.2 m/s
+    second = scene.positions[:, 2]  # pedestrian 2 after the lost boxes: a new track
+    assert np.isnan(second[:15]).all() and np.isfinite(second[15:]).all()  # from frame 180
+
+
+def test_raw_sdd_through_a_family_gives_windows_and_walking_speeds(tmp_path):
+    (tmp_path / "video0.txt").write_text(sdd_annotations(600))
+    (tmp_path / "sdd_mine.toml").write_text(
+        'generator = "files"\n[knobs]\nformat = "sdd"\nscale = 0.04\nevery = 12\n'
+        'split_gaps = true\n[values.a]\ntrain = ["video0.txt"]\ntest = ["video0.txt"]\n'
+    )
+    domain = build_domain(parse_scenario("sdd_mine_a", [tmp_path])[0], 0)
+    windows = domain.windows("train")
+    # pedestrian 0: 50 frames, 31 windows; pedestrian 2: frames 0-108 (10) and 180-588 (35)
+    assert len(windows.positions) == 31 + 0 + 16
+    assert domain.stats["mean_speed"] == pytest.approx(1.2, rel=1e-6)  # both walk 1.2 m/s
+
+
+def test_socialvae_sdd_text_is_eth_ucy_columns_with_windows_renamed(tmp_path):
+    """SocialVAE's converted SDD: ``frame agent x y`` in metres at frame step 12, an agent
+    re-numbered in each 20-frame window; read as ETH-UCY text, every window kept."""
+    lines = [
+        f"{12 * t + 240 * w} {28 + w:.1f} {40 - 0.6 * (20 * w + t):.6f} 16.0"
+        for w in range(2)
+        for t in range(20)
+    ]
+    path = tmp_path / "coupa_0.txt"
+    path.write_text("\n".join(lines) + "\n")
+    scenes = read_trajectory_file(path)
+    assert [s.agent_ids.tolist() for s in scenes] == [[28], [29]]
+    assert all(s.num_frames == 20 for s in scenes)
+    np.testing.assert_allclose(np.diff(scenes[1].positions[:, 0, 0]), -0.6)
+
+
+def trajnet_file(tmp_path, lines):
+    path = tmp_path / "biwi_hotel.ndjson"
+    path.write_text("\n".join(json.dumps(line) for line in lines) + "\n")
+    return path
+
+
+def trajnet_fixture(tmp_path):
+    """Agents 1 to 3 at frames 0, 10, ..., 300; two scenes of 21 frames: primaries 2 and 1."""
+    tracks = [
+        {"track": {"f": 10 * t, "p": p, "x": 0.1 * t + p, "y": -p}}
+        for t in range(31)
+        for p in (1, 2, 3)
+        if not (p == 3 and t > 15)  # agent 3 leaves after frame 150
+    ]
+    scenes = [
+        {"scene": {"id": 0, "p": 2, "s": 0, "e": 200, "fps": 2.5, "tag": 1}},
+        {"scene": {"id": 1, "p": 1, "s": 100, "e": 300}},
+    ]
+    return trajnet_file(tmp_path, scenes + tracks)
+
+
+def test_trajnetpp_scenes_keep_their_frames_and_their_primary_first(tmp_path):
+    first, second = trajnet_scenes(trajnet_fixture(tmp_path))
+    assert first.num_frames == second.num_frames == 21
+    assert first.agent_ids.tolist() == [2, 1, 3] and second.agent_ids.tolist() == [1, 2, 3]
+    np.testing.assert_allclose(first.positions[0, 0], [2.0, -2.0])
+    np.testing.assert_allclose(second.positions[20, 0], [4.0, -1.0])  # agent 1 at frame 300
+    assert np.isfinite(second.positions[:6, 2]).all() and np.isnan(second.positions[6:, 2]).all()
+
+
+def test_trajnetpp_family_windows_every_scene(tmp_path):
+    trajnet_fixture(tmp_path)
+    (tmp_path / "tnpp.toml").write_text(
+        'generator = "files"\n[knobs]\nformat = "trajnetpp"\n'
+        '[values.a]\ntrain = ["biwi_hotel.ndjson"]\ntest = ["biwi_hotel.ndjson"]\n'
+    )
+    domain = build_domain(parse_scenario("tnpp_a", [tmp_path])[0], 0)
+    assert len(domain.scenes["train"]) == 2
+    assert domain.stats["mean_speed"] == pytest.approx(0.25)  # 0.1 m a frame of 0.4 s
+
+
+@pytest.mark.parametrize(
+    "line, message",
+    [
+        ("{not json", ":3: not a JSON line"),
+        ('{"track": {"f": 0, "p": 1, "x": 1}}', ":3: record lacks the field 'y'"),
+        ('{"person": {}}', ":3: expected a 'scene' or a 'track' record"),
+        ('{"scene": {"id": 4, "p": 9, "s": 0, "e": 10}}', ":3: scene 4 lacks its agent 9"),
+        ('{"track": {"f": 0, "p": 1, "x": NaN, "y": 0}}', ":3: non-finite value"),
+    ],
+)
+def test_broken_trajnetpp_lines_are_named(tmp_path, line, message):
+    path = tmp_path / "t.ndjson"
+    path.write_text(
+        '{"scene": {"id": 0, "p": 1, "s": 0, "e": 10}}\n'
+        '{"track": {"f": 0, "p": 1, "x": 0, "y": 0}}\n' + line + "\n"
+        '{"track": {"f": 10, "p": 1, "x": 1, "y": 0}}\n'
+    )
+    with pytest.raises(InputError, match=message):
+        trajnet_scenes(path)
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ('0 1 2 3 4 0 0 0 "Pedestrian"\n', ":1: expected 10 columns"),
+        ('0 1 2 3 x 0 0 0 0 "Pedestrian"\n', ":1: non-numeric value"),
+        ('0 1 2 3 4 7 0 0 0 "Pedestrian"\n', "no rows left on frames that are multiples of 12"),
+    ],
+)
+def test_broken_sdd_lines_are_named(tmp_path, text, message):
+    path = tmp_path / "annotations.txt"
+    path.write_text(text)
+    with pytest.raises(InputError, match=message):
+        read_trajectory_file(path, format="sdd", every=12)
+
+
+def test_unknown_format_is_refused(tmp_path):
+    (tmp_path / "bad.toml").write_text(
+        'generator = "files"\n[knobs]\nformat = "waymo"\n[values.a]\ntrain = ["x"]\ntest = ["x"]\n'
+    )
+    with pytest.raises(InputError, match="format 'waymo': expected one of ethucy, sdd, trajnetpp"):
+        parse_scenario("bad_a", [tmp_path])
