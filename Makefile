@@ -3,7 +3,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 SCENARIO ?= crowd_noise_0.1..0.6
 
-.PHONY: run test lint venv
+.PHONY: run test lint docs venv
 
 # pip compiles bytecode on one core; compileall does it on all (22 s here against pip's 30 s more),
 # and without it every test process compiled torch's modules anew (tests 8:10 against 4:50).
@@ -25,3 +25,7 @@ test: venv
 
 lint: venv
 	$(VENV)/bin/ruff check . && $(VENV)/bin/ruff format --check .
+
+# The documentation site (docs/, the API reference from the docstrings) into site/; warnings fail.
+docs: venv
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --quiet

@@ -30,7 +30,7 @@ def error_matrix(
     path: Path,
     families: list[str] | None = None,
 ) -> Path:
-    """Heat map of R[i][j]: ADE on task j after training through task i.
+    """Heat map of ``R[i][j]``: ADE on task j after training through task i.
 
     With tasks of several ``families`` (one per column), each family's columns get a colour
     scale of their own, so metres of traffic error do not wash out metres of crowd error.

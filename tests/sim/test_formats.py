@@ -47,8 +47,8 @@ def test_raw_sdd_keeps_pedestrian_box_centres_at_2_5_fps_in_metres(tmp_path):
 def test_raw_sdd_through_a_family_gives_windows_and_walking_speeds(tmp_path):
     (tmp_path / "video0.txt").write_text(sdd_annotations(600))
     (tmp_path / "sdd_mine.toml").write_text(
-        'generator = "files"\n[knobs]\nformat = "sdd"\nscale = 0.04\nevery = 12\n'
-        'split_gaps = true\n[values.a]\ntrain = ["video0.txt"]\ntest = ["video0.txt"]\n'
+        'generator = "files"\n[knobs]\nformat = "sdd"\nevery = 12\nsplit_gaps = true\n'
+        '[values.a]\ntrain = ["video0.txt"]\ntest = ["video0.txt"]\nscale = 0.04\n'
     )
     domain = build_domain(parse_scenario("sdd_mine_a", [tmp_path])[0], 0)
     windows = domain.windows("train")
