@@ -11,6 +11,7 @@ proportion to its rows. Nothing is simulated; knobs describe the recording.
 
 from __future__ import annotations
 
+import glob
 import itertools
 import warnings
 from dataclasses import dataclass
@@ -264,7 +265,7 @@ class FilesGenerator(Generator):
             paths: list[str] = []
             for pattern in getattr(knobs, split):
                 full = pattern if Path(pattern).is_absolute() else str(base_dir / pattern)
-                matches = sorted(Path(full).parent.glob(Path(full).name))
+                matches = sorted(map(Path, glob.glob(full)))  # wildcards in folders too
                 if not matches:
                     raise InputError(f"{split} pattern {pattern!r}: no file matches {full}")
                 for match in matches:  # a folder, a device or a FIFO would hang or never end

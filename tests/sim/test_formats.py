@@ -2,6 +2,7 @@
 annotations, TrajNet++ ndjson, and SocialVAE's converted SDD text, through the files family."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -156,3 +157,19 @@ def test_unknown_format_is_refused(tmp_path):
     )
     with pytest.raises(InputError, match="format 'waymo': expected one of ethucy, sdd, trajnetpp"):
         parse_scenario("bad_a", [tmp_path])
+
+
+def test_the_sdd_example_family_reads_a_location_across_its_videos(tmp_path):
+    """examples/sdd.toml in the folder above SDD's annotations/: bookstore trains on videos 0
+    to 5 (a wildcard in a folder name) and tests on video 6."""
+    example = Path(__file__).parents[2] / "examples" / "sdd.toml"
+    (tmp_path / "sdd.toml").write_text(example.read_text())
+    for video in range(7):
+        folder = tmp_path / "annotations" / "bookstore" / f"video{video}"
+        folder.mkdir(parents=True)
+        (folder / "annotations.txt").write_text(sdd_annotations(300))
+    (spec,) = parse_scenario("sdd_bookstore", [tmp_path])
+    assert [Path(p).parent.name for p in spec.knobs["train"]] == [f"video{i}" for i in range(6)]
+    domain = build_domain(spec, 0)
+    assert len(domain.scenes["train"]) == 6 and len(domain.scenes["test"]) == 1
+    assert domain.stats["mean_speed"] == pytest.approx(12 / 0.4)  # pixels per second
