@@ -45,6 +45,24 @@ def colour_name(index: int) -> str:
     return NAMES[index % len(NAMES)]
 
 
+def mix(rgb: tuple[int, int, int], other: tuple[int, int, int], share: float):
+    """``rgb`` moved ``share`` of the way to ``other`` (0: itself, 1: other)."""
+    return tuple(round(c + share * (o - c)) for c, o in zip(rgb, other, strict=True))
+
+
+def faint(rgb: tuple[int, int, int]) -> tuple[int, int, int]:
+    """A sample line's colour: the method's, two thirds of the way to white. The viewer draws
+    lines opaque whatever their alpha, so faintness has to be in the colour itself."""
+    return mix(rgb, (255, 255, 255), 0.65)
+
+
+def task_shade(rgb: tuple[int, int, int], index: int, count: int) -> tuple[int, int, int]:
+    """The ``index``-th of ``count`` tasks' shade of a method's colour: from darker (the first
+    task) to lighter (the last), so one method's task curves stay its own yet apart."""
+    share = index / (count - 1) if count > 1 else 0.5
+    return mix(mix(rgb, (0, 0, 0), 0.45), (255, 255, 255), 0.6 * share)
+
+
 def as_matplotlib(rgb: tuple[int, int, int]) -> tuple[float, float, float]:
     return tuple(c / 255 for c in rgb)
 
@@ -54,7 +72,7 @@ def legend_markdown(methods: list[str]) -> str:
     rows = [f"- **{m}**: {colour_name(i)}" for i, m in enumerate(methods)]
     return (
         "## Legend\n\nObserved history: grey. True future: green. Predictions, one colour per "
-        "method (the faint lines are the K samples, the thick one the best of K):\n\n"
-        + "\n".join(rows)
-        + "\n"
+        "method (the thin pale lines are the K samples, the thick one the best of K; the "
+        "truth is drawn above them). Curves: one shade of its method's colour per task, from "
+        "dark (the first task) to light (the last):\n\n" + "\n".join(rows) + "\n"
     )

@@ -11,7 +11,7 @@ from c2inet.data import Windows
 from c2inet.metrics import best_sample, displacement_errors
 from c2inet.trainer import sample_predictions
 from viz.loggers import epoch_step, task_step
-from viz.recording import RunRecorder
+from viz.recording import RunRecorder, extent
 
 
 @dataclass
@@ -41,7 +41,10 @@ class RecordingObserver:
     def __call__(self, event: str, data: dict[str, Any]) -> None:
         if event == "epoch_end":
             epoch = epoch_step(data["task"], data["epoch"], self.epochs)
-            self.recorder.log_epoch(self.method, {**data, "global_epoch": epoch}, self.colour)
+            tasks = [s.task for s in self.showcases]
+            self.recorder.log_epoch(
+                self.method, {**data, "global_epoch": epoch}, self.colour, tasks
+            )
         elif event == "task_end":
             self._task_end(data)
 
@@ -111,3 +114,16 @@ def log_truth(recorder: RunRecorder, showcases: list[Showcase], rollouts: dict[s
             recorder.log_scene_truth(show.task, s, windows.positions[agents], ids, windows.obs_len)
         if show.task in rollouts:
             recorder.log_rollout_truth(show.task, *rollouts[show.task])
+
+
+def framing(showcases: list[Showcase], rollouts: dict[str, tuple]) -> dict[str, tuple]:
+    """Where each scene view and rollout view opens (origin -> bounds): the truth's extent."""
+    bounds = {}
+    for show in showcases:
+        windows = show.scenes
+        for s in range(len(windows)):
+            agents = slice(windows.scene_start[s], windows.scene_start[s + 1])
+            bounds[f"/tasks/{show.task}/scenes/{s}"] = extent(windows.positions[agents])
+        if show.task in rollouts:
+            bounds[f"/rollouts/{show.task}"] = extent(rollouts[show.task][0])
+    return bounds

@@ -11,6 +11,7 @@ counted across the whole curriculum). Entity paths:
 - ``/curves/<method>/...`` (Scalars), ``/queue/<method>/...`` (C2INet's prior queue)
 
 Everything is logged batched: one archetype per entity per frame, never one entity per agent.
+Draw order puts the truth above the best of K and both above the pale, thin K samples.
 """
 
 from __future__ import annotations
@@ -26,11 +27,14 @@ import rerun.blueprint as rrb
 
 from c2inet.errors import InputError
 from c2inet.files import write_atomic
-from viz.colours import FUTURE, OBSERVED, legend_markdown
+from viz.colours import FUTURE, OBSERVED, faint, legend_markdown, task_shade
 from viz.live import spawn_viewer, viewer_url
 from viz.loggers import diagnostic_scalars
 
 Colour = tuple[int, int, int]
+Bounds = tuple[float, float, float, float]  # x_min, x_max, y_min, y_max
+SAMPLES, BEST, TRUTH = 10.0, 20.0, 30.0  # draw orders: higher is drawn above
+THIN = rr.Radius.ui_points(1.0)  # a sample line, whatever the scene's size
 
 
 def curve_views(methods: list[str]) -> list[tuple[str, list[str]]]:
@@ -38,25 +42,44 @@ def curve_views(methods: list[str]) -> list[tuple[str, list[str]]]:
     trailing ``/**`` only, a ``*`` inside a path matches nothing."""
     losses = ("nll", "kl_c", "kl_z", "penalty")
     return [
-        ("validation ADE", [f"/curves/{m}/val_ade/**" for m in methods]),
-        ("error matrix rows (ADE)", [f"/curves/{m}/matrix/ade/**" for m in methods]),
-        ("training losses", [f"/curves/{m}/{loss}" for m in methods for loss in losses]),
+        ("validation ADE (m) by epoch", [f"/curves/{m}/val_ade/**" for m in methods]),
+        ("error matrix rows: ADE (m) by epoch", [f"/curves/{m}/matrix/ade/**" for m in methods]),
+        ("training losses by epoch", [f"/curves/{m}/{loss}" for m in methods for loss in losses]),
     ]
 
 
-def default_blueprint(tasks: list[str], methods: list[str], scenes: int) -> rrb.Blueprint:
-    """Per task a tab: its sample scenes in a grid beside its rollout, as large; beside them the
-    curves and diagnostics, then the legend and the run card. The viewer opens on the ``epoch``
-    timeline, where the curves live and every view shows the latest predictions."""
+def framed(origin: str, name: str, bounds: dict[str, Bounds]) -> rrb.Spatial2DView:
+    """A 2-D view of ``origin`` opening on its ``bounds`` (the scene's extent with a margin),
+    so no scene is cut at the panel's edges; the viewer's own framing where none is known."""
+    box = bounds.get(origin)
+    visual = None if box is None else rrb.VisualBounds2D(x_range=box[:2], y_range=box[2:])
+    return rrb.Spatial2DView(origin=origin, name=name, visual_bounds=visual)
+
+
+def extent(points: np.ndarray, margin: float = 0.15) -> Bounds:
+    """The bounds of ``points`` (..., 2; NaN ignored), square, with ``margin`` of their size on
+    every side (at least 1 m across)."""
+    flat = points.reshape(-1, 2)
+    flat = flat[np.isfinite(flat).all(1)]
+    low, high = flat.min(0), flat.max(0)
+    centre, half = (low + high) / 2, max(float((high - low).max()) / 2, 0.5) * (1 + 2 * margin)
+    return (centre[0] - half, centre[0] + half, centre[1] - half, centre[1] + half)
+
+
+def default_blueprint(
+    tasks: list[str], methods: list[str], scenes: int, bounds: dict[str, Bounds] | None = None
+) -> rrb.Blueprint:
+    """Per task a tab: its sample scenes in a grid beside its rollout, as large, each framed on
+    its ``bounds`` (origin -> extent); beside them the curves and diagnostics, then the legend
+    and the run card. The viewer opens on the ``epoch`` timeline, where the curves live and
+    every view shows the latest predictions."""
+    bounds = bounds or {}
     tabs = [
         rrb.Horizontal(
             rrb.Grid(
-                *(
-                    rrb.Spatial2DView(origin=f"/tasks/{task}/scenes/{k}", name=f"scene {k}")
-                    for k in range(scenes)
-                )
+                *(framed(f"/tasks/{task}/scenes/{k}", f"scene {k}", bounds) for k in range(scenes))
             ),
-            rrb.Spatial2DView(origin=f"/rollouts/{task}", name="rollout"),
+            framed(f"/rollouts/{task}", "rollout", bounds),
             name=task,
         )
         for task in tasks
@@ -68,7 +91,7 @@ def default_blueprint(tasks: list[str], methods: list[str], scenes: int) -> rrb.
             rrb.Vertical(
                 rrb.Tabs(
                     *(rrb.TimeSeriesView(origin="/curves", contents=c, name=n) for n, c in curves),
-                    rrb.TimeSeriesView(origin="/diagnostics", name="diagnostics (per task)"),
+                    rrb.TimeSeriesView(origin="/diagnostics", name="diagnostics after each task"),
                 ),
                 rrb.Tabs(
                     rrb.TextDocumentView(origin="/legend", name="legend"),
@@ -85,6 +108,13 @@ def default_blueprint(tasks: list[str], methods: list[str], scenes: int) -> rrb.
 def _strips(paths: np.ndarray) -> list[np.ndarray]:
     """(..., T, 2) -> a flat list of (T, 2) polylines."""
     return list(paths.reshape(-1, *paths.shape[-2:]))
+
+
+def _finite_runs(track: np.ndarray) -> list[np.ndarray]:
+    """The stretches of one agent's (frames, 2) track where it is present, as polylines."""
+    present = np.isfinite(track).all(1)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], present.astype(int), [0]])))
+    return [track[a:b] for a, b in zip(edges[::2], edges[1::2], strict=True) if b - a > 1]
 
 
 def _from_last_observed(last_obs: np.ndarray, pred: np.ndarray) -> np.ndarray:
@@ -175,11 +205,13 @@ class RunRecorder:
         )
         self.rec.log(
             f"{base}/history",
-            rr.LineStrips2D(_strips(positions[:, :obs_len]), colors=OBSERVED),
+            rr.LineStrips2D(_strips(positions[:, :obs_len]), colors=OBSERVED, draw_order=TRUTH),
             static=True,
         )
-        future = positions[:, obs_len - 1 :]
-        self.rec.log(f"{base}/future", rr.LineStrips2D(_strips(future), colors=FUTURE), static=True)
+        future = rr.LineStrips2D(
+            _strips(positions[:, obs_len - 1 :]), colors=FUTURE, draw_order=TRUTH
+        )
+        self.rec.log(f"{base}/future", future, static=True)
 
     def log_scene_predictions(
         self,
@@ -202,13 +234,27 @@ class RunRecorder:
         base = f"tasks/{task}/scenes/{index}/{method}"
         self._time(**when, frame=obs_len - 1)
         paths = _from_last_observed(last_obs, pred)
-        self.rec.log(f"{base}/predictions", rr.LineStrips2D(_strips(paths), colors=(*colour, 70)))
+        samples = rr.LineStrips2D(
+            _strips(paths), colors=faint(colour), radii=THIN, draw_order=SAMPLES
+        )
+        self.rec.log(f"{base}/predictions", samples)
         chosen = paths[best, np.arange(paths.shape[1])]
-        self.rec.log(f"{base}/best", rr.LineStrips2D(_strips(chosen), colors=colour, radii=0.04))
+        self.rec.log(
+            f"{base}/best",
+            rr.LineStrips2D(_strips(chosen), colors=colour, radii=0.04, draw_order=BEST),
+        )
 
     # --- rollouts -------------------------------------------------------------------------
     def log_rollout_truth(self, task: str, positions: np.ndarray, ids: np.ndarray) -> None:
-        """A longer episode, frame by frame; positions (frames, agents, 2), NaN where absent."""
+        """A longer episode, frame by frame; positions (frames, agents, 2), NaN where absent.
+        Each agent's whole path is also drawn as static lines, so the truth is there on every
+        timeline, the ``epoch`` one the viewer opens on included."""
+        paths = [run for agent in positions.transpose(1, 0, 2) for run in _finite_runs(agent)]
+        self.rec.log(
+            f"rollouts/{task}/truth/paths",
+            rr.LineStrips2D(paths, colors=FUTURE, radii=THIN, draw_order=TRUTH),
+            static=True,
+        )
         present = ~np.isnan(positions[..., 0])
         counts = present.sum(1)
         labels = np.broadcast_to(np.asarray(ids).astype(str), present.shape)[present]
@@ -260,12 +306,17 @@ class RunRecorder:
         self._colour_once(path, rr.SeriesLines, colour)
         self.rec.log(path, rr.Scalars(float(value)))
 
-    def log_epoch(self, method: str, record: dict[str, Any], colour: Colour) -> None:
-        """Training losses and validation ADE of every seen task, on the global ``epoch``."""
+    def log_epoch(
+        self, method: str, record: dict[str, Any], colour: Colour, tasks: list[str]
+    ) -> None:
+        """Training losses and validation ADE of every seen task, on the global ``epoch``; each
+        task's curve in its own shade of the method's colour."""
         self._time(epoch=record["global_epoch"], task=record["task"])
         for key, value in record.items():
             if key not in ("task", "epoch", "global_epoch"):
-                self._scalar(f"curves/{method}/{key}", value, colour)
+                task = key.removeprefix("val_ade/")
+                shade = task_shade(colour, tasks.index(task), len(tasks)) if task != key else colour
+                self._scalar(f"curves/{method}/{key}", value, shade)
 
     def log_matrix_row(
         self,
@@ -280,8 +331,9 @@ class RunRecorder:
         self._time(**when)
         rules = [m for m in row if m.startswith(("ade_c_", "ade_k1_c_"))]
         for j, name in enumerate(tasks):
+            shade = task_shade(colour, j, len(tasks))
             for metric in ("ade", "fde", "ade_k1", *rules):
-                self._scalar(f"curves/{method}/matrix/{metric}/{name}", row[metric][j], colour)
+                self._scalar(f"curves/{method}/matrix/{metric}/{name}", row[metric][j], shade)
 
     def log_diagnostics(
         self, method: str, when: dict[str, int], diagnostics: dict, colour: Colour

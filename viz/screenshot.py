@@ -1,17 +1,19 @@
 """``python -m viz.screenshot FILE.rrd OUT.png``: the web viewer rendered by headless Chromium.
 
-Serves the recording on 127.0.0.1 (``viz.serve``), loads the viewer in Debian's ``chromium`` with
-SwiftShader's software WebGL (no GPU needed), and saves a screenshot. Used to check that the
-viewer renders, and for the README's picture.
+Serves the recording on 127.0.0.1 (``viz.serve``), opens the viewer in Debian's ``chromium``
+(SwiftShader's software WebGL, no GPU needed) driven by Playwright, and polls in real time until
+the viewer has drawn, then saves a screenshot. Real time, not Chromium's virtual time: on a busy
+machine the viewer's WebAssembly takes tens of seconds to compile, and a virtual-time budget ran
+out after about 3 s of real time whatever its size. Needs ``pip install '.[screenshot]'``.
 """
 
 from __future__ import annotations
 
+import io
 import os
 import shutil
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -23,8 +25,8 @@ from viz.cli import guarded, plain_parser
 from viz.serve import command, free_port, launch, stop, wait_for_port
 
 MIN_COLOURS = 500  # a blank page has under 10, the loading screen a few dozen
+SETTLE_S = 5.0  # after the first drawn frame: the views fill in, the data finishes streaming
 CHROMIUM_FLAGS = [
-    "--headless=new",
     "--no-sandbox",
     "--use-gl=angle",
     "--use-angle=swiftshader",
@@ -38,55 +40,57 @@ CHROMIUM_FLAGS = [
 ]
 
 
-def rendered(png: Path) -> bool:
+def rendered(png: bytes | Path) -> bool:
     """True when the picture shows a drawn viewer, not a blank or loading page (few colours)."""
     from matplotlib.image import imread
 
-    image = imread(png)
+    image = imread(io.BytesIO(png) if isinstance(png, bytes) else png, format="png")
     return len(np.unique(image.reshape(-1, image.shape[-1]), axis=0)) > MIN_COLOURS
 
 
 def screenshot(
-    recording: Path, out: Path, size: str = "1600,900", budget_ms: int = 60000, attempts: int = 3
+    recording: Path, out: Path, size: str = "1600,900", timeout_s: float = 300.0
 ) -> Path:
-    """Render ``recording`` in the web viewer and save ``out``; raises RuntimeError on failure."""
-    browser = shutil.which("chromium") or shutil.which("chromium-browser")
-    if browser is None:
+    """Render ``recording`` in the web viewer and save ``out`` once it has drawn, polling every
+    two seconds for at most ``timeout_s``; raises RuntimeError on failure."""
+    try:
+        from playwright.sync_api import Error, sync_playwright
+    except ImportError:
+        raise RuntimeError("needs Playwright: pip install '.[screenshot]'") from None
+    browser_path = shutil.which("chromium") or shutil.which("chromium-browser")
+    if browser_path is None:
         raise RuntimeError("no chromium on PATH (Debian: apt-get install chromium)")
+    width, height = (int(v) for v in size.split(","))
     web, grpc = free_port(), free_port()
-    with tempfile.TemporaryDirectory() as tmp:
-        shot = Path(tmp) / "viewer.png"  # out is written only once a drawn viewer is in it
-        env = dict(os.environ)  # the user's own Rerun configuration
-        server = launch(
-            command(recording, web, grpc), env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
-        )
-        try:
-            wait_for_port(web)
-            url = f"http://127.0.0.1:{web}/?url=rerun%2Bhttp://127.0.0.1:{grpc}/proxy"
-            for attempt in range(1, attempts + 1):  # a loaded machine may still show the loader
-                subprocess.run(
-                    [
-                        browser,
-                        *CHROMIUM_FLAGS,
-                        f"--user-data-dir={tmp}/chromium",
-                        f"--window-size={size}",
-                        f"--virtual-time-budget={budget_ms * attempt}",
-                        f"--screenshot={shot}",
-                        url,
-                    ],
-                    env=env,
-                    stdout=subprocess.DEVNULL,
-                    stderr=subprocess.DEVNULL,
-                    timeout=300,
-                    check=True,
-                )
-                if shot.exists() and rendered(shot):
-                    write_atomic(out, lambda path: shutil.copyfile(shot, path))
-                    return out
-                time.sleep(2)  # let the viewer server settle before the next try
-        finally:
-            stop(server)
-    raise RuntimeError(f"the viewer did not render within {attempts} attempts; {out} not written")
+    server = launch(
+        command(recording, web, grpc),
+        dict(os.environ),  # the user's own Rerun configuration
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        wait_for_port(web)
+        url = f"http://127.0.0.1:{web}/?url=rerun%2Bhttp://127.0.0.1:{grpc}/proxy"
+        with sync_playwright() as playwright:
+            browser = playwright.chromium.launch(executable_path=browser_path, args=CHROMIUM_FLAGS)
+            try:
+                page = browser.new_page(viewport={"width": width, "height": height})
+                page.goto(url, timeout=timeout_s * 1000)
+                deadline = time.monotonic() + timeout_s
+                while time.monotonic() < deadline:
+                    page.wait_for_timeout(2000)
+                    if rendered(page.screenshot()):
+                        page.wait_for_timeout(SETTLE_S * 1000)
+                        png = page.screenshot()
+                        write_atomic(out, lambda path, png=png: path.write_bytes(png))
+                        return out
+            except Error as error:
+                raise RuntimeError(f"chromium: {error.message.splitlines()[0]}") from None
+            finally:
+                browser.close()
+    finally:
+        stop(server)
+    raise RuntimeError(f"the viewer did not draw within {timeout_s:g} s; {out} not written")
 
 
 @guarded

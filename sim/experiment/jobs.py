@@ -34,7 +34,7 @@ from sim.experiment.curriculum import (
 )
 from viz.colours import method_colour
 from viz.loggers import make_loggers
-from viz.observer import RecordingObserver, log_truth
+from viz.observer import RecordingObserver, framing, log_truth
 from viz.recording import RunRecorder, default_blueprint
 
 APP_ID = "c2i-testbed"
@@ -239,7 +239,12 @@ def record_truth(config: ExperimentConfig, curriculum: Curriculum, path: Path, l
         recording_id(config),
         path,
         live,
-        default_blueprint(tasks, list(config.methods), SAMPLE_SCENES),
+        default_blueprint(
+            tasks,
+            list(config.methods),
+            SAMPLE_SCENES,
+            framing(curriculum.inputs.showcases, curriculum.rollouts),
+        ),
     )
     recorder.log_legend(list(config.methods))
     for domain in curriculum.domains:
