@@ -271,7 +271,8 @@ def add_experiment_options(
         p.add_argument(
             "--logger",
             default="",
-            help="also log every job's curves: csv, tensorboard or both (comma-separated)",
+            help="also log every job's curves: csv, tensorboard, mlflow (the run's own "
+            "mlruns/ store) or mlflow=URI (a tracking server); comma-separated",
         )
 
 

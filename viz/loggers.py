@@ -1,17 +1,20 @@
-"""Loggers on the trainer's observer hook: what a job measures, as a CSV file or TensorBoard
-events, beside the recording.
+"""Loggers on the trainer's observer hook: what a job measures, as a CSV file, TensorBoard
+events or an MLflow run, beside the recording.
 
-Both log the same numbers at the same global step (task * epochs + epoch): per epoch the
+All log the same numbers at the same global step (task * epochs + epoch): per epoch the
 training losses and the validation ADE of every seen task, per task the error-matrix row and the
-diagnostics (lists averaged over the tasks seen). A resumed job replays its finished tasks'
-events, so each logger starts its output afresh and ends up complete.
+diagnostics (lists averaged over the tasks seen); TensorBoard and MLflow also the job's
+configuration as hyper-parameters. A resumed job replays its finished tasks' events, so each
+logger starts its output afresh and ends up complete.
 """
 
 from __future__ import annotations
 
 import csv
+import logging
 import os
 import shutil
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -20,7 +23,7 @@ import numpy as np
 
 from c2inet.errors import InputError
 
-LOGGERS = ("csv", "tensorboard")
+LOGGERS = ("csv", "tensorboard", "mlflow")  # mlflow=URI: a tracking server, not the local store
 ROW_METRICS = ("ade", "fde", "ade_k1", "fde_k1", "ade_draw", "fde_draw")
 
 
@@ -59,11 +62,28 @@ def scalars(event: str, data: dict[str, Any], epochs: int, tasks: list[str]) -> 
             yield step, f"diagnostics/{key}", value
 
 
+def logger_name(spec: str) -> str:
+    """The logger a ``--logger`` entry names (``mlflow=URI`` names ``mlflow``)."""
+    return spec.split("=", 1)[0]
+
+
+def flat_params(tree: dict[str, Any], prefix: str = "") -> dict[str, str | int | float | bool]:
+    """A nested configuration as ``scope.key`` parameters; lists and None as text."""
+    out: dict[str, str | int | float | bool] = {}
+    for key, value in tree.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, dict):
+            out.update(flat_params(value, f"{name}."))
+        else:
+            out[name] = value if isinstance(value, str | int | float | bool) else str(value)
+    return out
+
+
 class CSVLogger:
     """``log.csv``: one row per number (step, task, event, name, value), written under a
     temporary name and renamed when the job is complete."""
 
-    def __init__(self, folder: Path, epochs: int, tasks: list[str]):
+    def __init__(self, folder: Path, epochs: int, tasks: list[str], **_):
         self.path, self.epochs, self.tasks = folder / "log.csv", epochs, tasks
         self.partial = folder / "log.partial.csv"
         folder.mkdir(parents=True, exist_ok=True)
@@ -81,9 +101,10 @@ class CSVLogger:
 
 
 class TensorBoardLogger:
-    """``tensorboard/``: event files for ``tensorboard --logdir`` (one run per job)."""
+    """``tensorboard/``: event files for ``tensorboard --logdir`` (one run per job), with the
+    job's configuration and final scores in the HParams tab."""
 
-    def __init__(self, folder: Path, epochs: int, tasks: list[str]):
+    def __init__(self, folder: Path, epochs: int, tasks: list[str], params=None, **_):
         try:
             from torch.utils.tensorboard import SummaryWriter
         except ImportError:
@@ -93,15 +114,97 @@ class TensorBoardLogger:
         self.folder, self.epochs, self.tasks = folder / "tensorboard", epochs, tasks
         shutil.rmtree(self.folder, ignore_errors=True)  # a resumed job logs everything again
         self.writer = SummaryWriter(str(self.folder))
+        self.params, self.final = params or {}, {}
 
     def __call__(self, event: str, data: dict[str, Any]) -> None:
         for step, name, value in scalars(event, data, self.epochs, self.tasks):
             self.writer.add_scalar(name, value, step)
+        if event == "task_end":  # the latest row: the final one once the job ends
+            row = data["row"]
+            self.final = {f"final/{m}": float(np.mean(row[m])) for m in ("ade", "ade_k1")}
 
     def close(self) -> None:
+        if self.params:
+            self.writer.add_hparams(self.params, self.final, run_name=".")
         self.writer.close()
 
 
-def make_loggers(names: tuple[str, ...], folder: Path, epochs: int, tasks: list[str]) -> list:
-    kinds = {"csv": CSVLogger, "tensorboard": TensorBoardLogger}
-    return [kinds[name](folder, epochs, tasks) for name in names]
+class MLflowLogger:
+    """An MLflow run per job, in the run's own store ``mlflow.db`` (SQLite; ``mlflow ui
+    --backend-store-uri sqlite:///RUN/mlflow.db``) or on the server of ``mlflow=URI``: the
+    configuration as parameters, every number as a metric at its step. The experiment is the
+    run folder (``scenario/timestamp``)."""
+
+    def __init__(self, folder: Path, epochs: int, tasks: list[str], run_folder=None, **options):
+        run_folder = Path(run_folder or folder).resolve()
+        self.epochs, self.tasks = epochs, tasks
+        self.client, experiment = self.experiment(run_folder, options.get("uri"))
+        job = folder.resolve().relative_to(run_folder).as_posix()
+        for old in self.client.search_runs([experiment], f"tags.c2i_job = '{job}'"):
+            self.client.delete_run(old.info.run_id)  # a resumed job logs everything again
+        run = self.client.create_run(experiment, run_name=job, tags={"c2i_job": job})
+        self.run_id = run.info.run_id
+        params = options.get("params") or {}
+        self.client.log_batch(self.run_id, params=[_param(k, v) for k, v in params.items()])
+
+    @staticmethod
+    def experiment(run_folder: Path, uri: str | None = None):
+        """(client, experiment id) of the run, created when missing: by the run itself before
+        its jobs start, since two jobs creating the store at once would race."""
+        try:
+            from mlflow.tracking import MlflowClient
+        except ImportError:
+            raise InputError(
+                "--logger mlflow: MLflow is not installed (pip install '.[mlflow]')"
+            ) from None
+        logging.getLogger("mlflow").setLevel(logging.WARNING)  # its schema notices
+        client = MlflowClient(uri or f"sqlite:///{run_folder / 'mlflow.db'}")
+        name = f"{run_folder.parent.name}/{run_folder.name}"
+        found = client.get_experiment_by_name(name)
+        return client, found.experiment_id if found else client.create_experiment(name)
+
+    def __call__(self, event: str, data: dict[str, Any]) -> None:
+        from mlflow.entities import Metric
+
+        now = int(time.time() * 1000)
+        metrics = [
+            Metric(name, value, now, step)
+            for step, name, value in scalars(event, data, self.epochs, self.tasks)
+        ]
+        if metrics:
+            self.client.log_batch(self.run_id, metrics=metrics)
+
+    def close(self) -> None:
+        self.client.set_terminated(self.run_id)
+
+
+def _param(key: str, value: Any):
+    from mlflow.entities import Param
+
+    return Param(key, str(value)[:6000])  # MLflow's limit on a parameter's value
+
+
+def prepare_tracking(specs: tuple[str, ...], run_folder: Path) -> None:
+    """Create what the jobs' trackers share (the MLflow store and experiment) before they run."""
+    for spec in specs:
+        name, _, uri = spec.partition("=")
+        if name == "mlflow":
+            MLflowLogger.experiment(run_folder.resolve(), uri or None)
+
+
+def make_loggers(
+    specs: tuple[str, ...],
+    folder: Path,
+    epochs: int,
+    tasks: list[str],
+    run_folder: Path | None = None,
+    params: dict[str, Any] | None = None,
+) -> list:
+    """The loggers ``specs`` name, for the job in ``folder`` of the run in ``run_folder``."""
+    kinds = {"csv": CSVLogger, "tensorboard": TensorBoardLogger, "mlflow": MLflowLogger}
+    loggers = []
+    for spec in specs:
+        name, _, uri = spec.partition("=")
+        options = {"run_folder": run_folder, "params": params, "uri": uri or None}
+        loggers.append(kinds[name](folder, epochs, tasks, **options))
+    return loggers

@@ -136,16 +136,19 @@ class Execution:
     workers: int = os.cpu_count() or 1
     cache: Path = Path(".cache/domains")
     rerun: str | None = None
-    loggers: tuple[str, ...] = ()  # csv, tensorboard: per job, beside its checkpoints
+    loggers: tuple[str, ...] = ()  # csv, tensorboard, mlflow[=URI]: per job
     memory_budget: float | None = None  # GB one domain's generation may take (None: no limit)
 
     def __post_init__(self):
         object.__setattr__(self, "loggers", tuple(self.loggers))
         object.__setattr__(self, "cache", Path(self.cache))
-        for name in self.loggers:
+        for spec in self.loggers:
+            name, equals, uri = spec.partition("=")
             if name not in LOGGERS:
                 hint = did_you_mean(name, LOGGERS)
                 raise InputError(f"--logger {name!r}: unknown{hint} (known: {', '.join(LOGGERS)})")
+            if equals and (name != "mlflow" or not uri):
+                raise InputError(f"--logger {spec[:80]!r}: only mlflow=URI takes a value")
         if self.backend not in BACKENDS:
             raise InputError(f"--backend {self.backend!r}: expected one of {', '.join(BACKENDS)}")
         if self.rerun is not None and self.rerun != "spawn":

@@ -14,8 +14,9 @@ import sys
 import time
 import zipfile
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -33,7 +34,7 @@ from sim.experiment.curriculum import (
     make_showcases,
 )
 from viz.colours import method_colour
-from viz.loggers import make_loggers
+from viz.loggers import flat_params, make_loggers
 from viz.observer import RecordingObserver, framing, log_truth
 from viz.recording import RunRecorder, default_blueprint
 
@@ -157,7 +158,7 @@ def run_job(
         resume = False  # finished, but its recording is lost: run it again to draw it
     observers = [] if on_event is None else [on_event]
     names = [t.name for t in inputs.tasks]
-    logs = make_loggers(loggers, folder, config.epochs, names)
+    logs = make_loggers(loggers, folder, config.epochs, names, out, job_params(job, config))
     observers += logs
     recorder = drawing = None
     if (config.record or live) and job.seed_index == 0:  # the first seed is drawn
@@ -195,6 +196,21 @@ def run_job(
         result.predictions = drawing.final_predictions
     result.save(folder, identity)
     return result
+
+
+def job_params(job: Job, config: ExperimentConfig) -> dict[str, Any]:
+    """What a tracker logs as the job's hyper-parameters: the experiment, the resolved model
+    and training options, the method's own, and the job's method and seed."""
+    train = asdict(config.train_config(job.seed_index))
+    tree = {
+        "scenario": config.scenario,
+        "method": job.method,
+        "seed": train.pop("seed"),
+        "model": asdict(config.model_config()),
+        "train": train,
+        job.method: config.settings.get(job.method, {}),
+    }
+    return flat_params(tree)
 
 
 def job_identity(job: Job, config: ExperimentConfig, inputs: JobInputs) -> str:

@@ -23,6 +23,7 @@ from sim.experiment.estimate import describe, run_seconds
 from sim.experiment.jobs import follow, prepare, record_truth, run_job
 from sim.experiment.outputs import TRUTH_PART, claim, output_folder, write_outputs
 from viz.live import check_reachable, viewer_url
+from viz.loggers import prepare_tracking
 
 
 def run_experiment(
@@ -45,6 +46,7 @@ def run_experiment(
         check_reachable(viewer_url(execution.rerun))
     out = output_folder(config.scenario, out, resume)
     claim(out, config, execution, resume, overwrite)
+    prepare_tracking(execution.loggers, out)
     torch.set_num_threads(execution.threads)
     started = time.perf_counter()
     curriculum = prepare(config, execution)

@@ -247,7 +247,8 @@ def test_knob_overrides_reach_the_domains_and_the_run_card(tmp_path):
 def test_loggers_write_the_numbers_of_metrics_json(tmp_path):
     out = tmp_path / "run"
     args = ["--scenario", "crowd_noise_0.1,0.2", "--quick", "--methods", "finetune", "--no-record"]
-    done = run(*args, "--logger", "csv,tensorboard", "--out", str(out), "--cache", str(tmp_path))
+    loggers = "csv,tensorboard,mlflow"
+    done = run(*args, "--logger", loggers, "--set", "train.lr=0.002", "--out", str(out))
     assert done.returncode == 0, done.stderr
     metrics = json.loads((out / "metrics.json").read_text())["methods"]["finetune"]
     job = out / "jobs" / "finetune" / "seed_0"
@@ -263,6 +264,19 @@ def test_loggers_write_the_numbers_of_metrics_json(tmp_path):
     events.Reload()
     (point,) = [s for s in events.Scalars("matrix_ade/crowd_noise_0.1") if s.step == 3]
     assert point.value == pytest.approx(metrics["ade"][1][0], rel=1e-6)
+    final = events.Scalars("final/ade")[0].value  # the HParams tab's score, beside the settings
+    assert final == pytest.approx(sum(metrics["ade"][1]) / 2, rel=1e-6)
+    from mlflow.tracking import MlflowClient
+
+    client = MlflowClient(f"sqlite:///{out.resolve() / 'mlflow.db'}")
+    (experiment,) = [e for e in client.search_experiments() if e.name.endswith("/run")]
+    (tracked,) = client.search_runs([experiment.experiment_id])
+    assert tracked.data.tags["c2i_job"] == "jobs/finetune/seed_0"
+    assert tracked.data.params["train.lr"] == "0.002" and tracked.data.params["seed"] == "0"
+    history = client.get_metric_history(tracked.info.run_id, "matrix_ade/crowd_noise_0.1")
+    assert [(m.step, m.value) for m in history if m.step == 3] == [
+        (3, pytest.approx(metrics["ade"][1][0], rel=1e-6))
+    ]
 
 
 def test_usage_names_the_command_as_the_user_typed_it(monkeypatch):
