@@ -90,12 +90,12 @@ def test_a_wheel_in_a_fresh_environment_generates_domains_anywhere(tmp_path, mon
     assert "sim/scenarios/data/orca/radius_0.3_test.txt" in names
     assert any(n.endswith("LICENSE") for n in names)
     venv = tmp_path / "venv"
-    run(sys.executable, "-m", "venv", venv)
-    pip = (venv / "bin" / "python", "-m", "pip", "install", "-q", "--disable-pip-version-check")
+    run(sys.executable, "-m", "venv", "--without-pip", venv)  # this pip installs into it
     site = Path(sysconfig.get_path("purelib"))  # this environment's packages, ours excepted
     fresh = Path(run(venv / "bin" / "python", "-c", PURELIB).stdout.strip())
     (fresh / "dependencies.pth").write_text(f"{site}\n")
-    run(*pip, "--no-deps", "--no-compile", wheel)
+    pip = (sys.executable, "-m", "pip", "--python", venv / "bin" / "python", "install", "-q")
+    run(*pip, "--disable-pip-version-check", "--no-deps", "--no-compile", wheel)
     where = run(venv / "bin" / "python", "-c", "import sim; print(sim.__file__)", cwd=tmp_path)
     assert Path(where.stdout.strip()).is_relative_to(fresh)  # the wheel's copy, not the clone
     elsewhere = tmp_path / "elsewhere"

@@ -136,7 +136,21 @@ def claim(
             f"--out {out}: not empty; add --resume to continue the run in it, "
             "or --overwrite to replace it"
         )
+    held = out.resolve() in _LOCKS
     lock_run(out)
+    try:
+        _claim_locked(out, config, execution, resume, overwrite)
+    except InputError:  # refused: another process may claim the folder now (not a later call)
+        if not held:
+            unlock_run(out)
+        raise
+
+
+def _claim_locked(
+    out: Path, config: ExperimentConfig, execution: Execution, resume: bool, overwrite: bool
+) -> None:
+    """The part of :func:`claim` done under the folder's lock."""
+    saved = out / "config.json"
     if resume:
         before = json.loads(saved.read_text())["experiment"]
         now = json.loads(json.dumps(config.to_json()))
@@ -183,6 +197,13 @@ def lock_run(out: Path) -> None:
             "or choose another --out"
         ) from None
     _LOCKS[key] = fd
+
+
+def unlock_run(out: Path) -> None:
+    """Release the folder's lock this process holds (a refused claim)."""
+    fd = _LOCKS.pop(out.resolve(), None)
+    if fd is not None:
+        os.close(fd)  # closing the descriptor releases its flock
 
 
 def mark_run(out: Path) -> None:
