@@ -24,6 +24,7 @@ from sim.cli import (
 from sim.experiment import ExperimentConfig, run_experiment
 from sim.experiment.outputs import output_folder
 from viz.cli import guarded
+from viz.serve import viewer_command
 
 EXAMPLES = """\
   python -m sim.run --scenario crowd_noise_0.1..0.6
@@ -68,10 +69,9 @@ def main(argv: list[str] | None = None) -> int:
         return INTERRUPTED
     print(caption(config.k, config.seeds))
     print(text_table(metrics["methods"], metrics["labels"]))
-    recording = " and recording.rrd (rerun it)" if config.record else ""
-    print(
-        f"wall time {time.perf_counter() - started:.0f} s; wrote {out}: open report.md{recording}"
-    )
+    print(f"wall time {time.perf_counter() - started:.0f} s; wrote {out}: open report.md")
+    if config.record:
+        print(f"view it: {viewer_command(out / 'recording.rrd')}")
     return 0
 
 

@@ -19,6 +19,14 @@ from c2inet.errors import InputError
 from viz.cli import bounded_int, guarded, plain_parser
 
 
+def viewer_command(recording: Path) -> str:
+    """How to open ``recording``: this environment's native viewer, and the web one here."""
+    rerun = Path(sys.executable).with_name("rerun")
+    native = os.path.relpath(rerun) if rerun.exists() else "rerun"
+    native = native if not native.startswith("..") else str(rerun)
+    return f"{native} {recording}  (in a browser: python -m viz.serve {recording})"
+
+
 def free_port() -> int:
     """A TCP port free on 127.0.0.1 right now."""
     with socket.socket() as s:

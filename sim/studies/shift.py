@@ -114,9 +114,13 @@ def peaks(rows: list[dict], methods: tuple[str, ...]) -> dict[str, dict[str, Any
     return out
 
 
+MIN_RANKED = 4  # fewer shifts than this make any rank correlation +-1 or close: not reported
+
+
 def _spearman(x, y) -> float:
-    """Spearman's rank correlation (NaN where a side is constant)."""
-    if len(set(x)) < 2 or len(set(np.round(y, 12))) < 2:
+    """Spearman's rank correlation (NaN where a side is constant or there are fewer than
+    ``MIN_RANKED`` shifts: over two points it is always +-1)."""
+    if len(x) < MIN_RANKED or len(set(x)) < 2 or len(set(np.round(y, 12))) < 2:
         return float("nan")
     return float(spearmanr(x, y).statistic)
 
@@ -158,10 +162,15 @@ def shift_markdown(summary: dict[str, Any]) -> str:
                 if p["intermediate"]
                 else "no intermediate shift forgets clearly more than the largest"
             )
+            ranks = (
+                f"Rank correlation of forgetting with the knob shift {p['rank_knob']:+.2f}, "
+                f"with the statistics distance {p['rank_statistics']:+.2f}."
+                if not np.isnan(p["rank_knob"])
+                else f"No rank correlation: it needs {MIN_RANKED} or more shifts."
+            )
             lines.append(
                 f"- {m}: forgets most ({p['forgetting']:+.3f}) at a shift of {p['shift']:+g}; "
-                f"{where}. Rank correlation of forgetting with the knob shift "
-                f"{p['rank_knob']:+.2f}, with the statistics distance {p['rank_statistics']:+.2f}."
+                f"{where}. {ranks}"
             )
         lines.append("")
     return "\n".join(lines)

@@ -5,6 +5,7 @@ import json
 import math
 import subprocess
 import sys
+from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
@@ -43,6 +44,11 @@ def test_quick_run_writes_every_output(tmp_path):
     # the other test-time rules for C, beside the default (posterior)
     assert "c2inet-online, c from prior" in result.stdout
     assert "c2inet-online, c from responsible" in result.stdout
+    closing = result.stdout.strip().splitlines()[-2:]  # what was written, and how to view it
+    assert closing[0].endswith(f"wrote {out}: open report.md")
+    viewer = Path(sys.executable).with_name("rerun")
+    assert closing[1].startswith("view it: ") and f"{out}/recording.rrd" in closing[1]
+    assert Path(closing[1].split()[2]).resolve() == viewer.resolve()
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["scenario"] == "crowd_noise_0.1..0.3" and metrics["k"] == 5
     tidy = pq.read_table(out / "results.parquet").to_pydict()  # every matrix cell, one row each

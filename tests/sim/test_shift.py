@@ -24,7 +24,14 @@ def test_shift_runs_two_task_curricula_and_measures_both_shifts(tmp_path):
     assert all(np.isfinite(c["forgetting"]) and np.isfinite(c["gap"]) for c in cells)
     assert family["peaks"]["finetune"]["shift"] in (0.2, 0.5)
     assert (tmp_path / "shift.png").read_bytes()[:4] == b"\x89PNG"
-    assert "forgets most" in (tmp_path / "shift.md").read_text()
+    text = (tmp_path / "shift.md").read_text()
+    assert "forgets most" in text  # two shifts rank perfectly whatever they measure: not shown
+    assert np.isnan(family["peaks"]["finetune"]["rank_knob"]) and "No rank correlation" in text
+
+
+def test_rank_correlation_needs_four_shifts():
+    assert np.isnan(shift._spearman([1, 2, 3], [0.1, 0.3, 0.2]))
+    assert shift._spearman([1, 2, 3, 4], [0.1, 0.2, 0.3, 0.4]) == pytest.approx(1.0)
 
 
 def test_shift_needs_a_base_and_shifted_values():
