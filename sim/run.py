@@ -24,7 +24,7 @@ from sim.cli import (
 from sim.experiment import ExperimentConfig, run_experiment
 from sim.experiment.outputs import output_folder
 from viz.cli import guarded
-from viz.serve import viewer_command
+from viz.serve import how_to_open
 
 EXAMPLES = """\
   python -m sim.run --scenario crowd_noise_0.1..0.6
@@ -71,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
     print(text_table(metrics["methods"], metrics["labels"]))
     print(f"wall time {time.perf_counter() - started:.0f} s; wrote {out}: open report.md")
     if config.record:
-        print(f"view it: {viewer_command(out / 'recording.rrd')}")
+        print(f"view it: {how_to_open(out / 'recording.rrd')}")
     return 0
 
 

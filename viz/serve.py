@@ -19,14 +19,6 @@ from c2inet.errors import InputError
 from viz.cli import bounded_int, guarded, plain_parser
 
 
-def viewer_command(recording: Path) -> str:
-    """How to open ``recording``: this environment's native viewer, and the web one here."""
-    rerun = Path(sys.executable).with_name("rerun")
-    native = os.path.relpath(rerun) if rerun.exists() else "rerun"
-    native = native if not native.startswith("..") else str(rerun)
-    return f"{native} {recording}  (in a browser: python -m viz.serve {recording})"
-
-
 def free_port() -> int:
     """A TCP port free on 127.0.0.1 right now."""
     with socket.socket() as s:
@@ -71,6 +63,15 @@ def stop(process: subprocess.Popen, timeout: float = 10.0) -> None:
 def rerun_command() -> list[str]:
     """The installed rerun-sdk's ``rerun`` command."""
     return [shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))]
+
+
+def how_to_open(recording: Path) -> str:
+    """The command lines that open ``recording``: the installed native viewer (as a path
+    relative to here where that is shorter), and the web viewer of this module."""
+    native = rerun_command()[0]
+    relative = os.path.relpath(native)
+    native = relative if not relative.startswith("..") else native
+    return f"{native} {recording}  (in a browser: python -m viz.serve {recording})"
 
 
 def command(path: Path, web_port: int, grpc_port: int) -> list[str]:
