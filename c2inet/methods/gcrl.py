@@ -48,6 +48,7 @@ class GCRL(Method):
             free_bits_c=0.0,
             mi_floor_c=0.0,
             c_detached=False,
+            context_dropout=0.0,
         )
         prior = LearnablePrior(config.c_dim, self.options.components, learn_weights=True)
         return C2INetModel(config, prior=prior)
