@@ -31,6 +31,7 @@ SWITCHES = {  # one change per row
     "past-reconstruction": ["model.beta_x=1"],
     "no-mi-floor": ["model.mi_floor_c=0"],
     "c-not-detached": ["model.c_detached=false"],
+    "no-context-dropout": ["model.context_dropout=0"],
     "no-free-bits": ["model.free_bits_c=0"],
     "z-not-given-c": ["model.z_given_c=false"],
     "c-per-scene": ["model.c_per=scene"],
