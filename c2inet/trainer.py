@@ -57,6 +57,7 @@ class TrainConfig:
     eval_batch_scenes: int = 256
     val_every: int = 1  # epochs between validation curves (0: never)
     diagnostics: bool = True  # measure the confounder's diagnostics after each task
+    test_rules: bool = True  # also score the latent models' other test-time rules for C
 
     def __post_init__(self):
         require(self, 0, "epochs", "seed", "val_every")
@@ -137,12 +138,18 @@ def evaluate(
 
 
 def evaluate_all(
-    model: torch.nn.Module, windows: Windows, k: int, seed: int, batch_scenes: int = 256
+    model: torch.nn.Module,
+    windows: Windows,
+    k: int,
+    seed: int,
+    batch_scenes: int = 256,
+    variants: bool = True,
 ) -> dict[str, float]:
-    """:func:`evaluate` for the model's default, and for each of its evaluation variants with
-    the variant's name appended to the metric names (``ade_c_posterior``)."""
+    """:func:`evaluate` for the model's default, and (with ``variants``) for each of its
+    evaluation variants with the variant's name appended to the metric names
+    (``ade_c_posterior``)."""
     scores = evaluate(model, windows, k, seed, batch_scenes)
-    for suffix, options in model.evaluation_variants().items():
+    for suffix, options in model.evaluation_variants().items() if variants else ():
         other = evaluate(model, windows, k, seed, batch_scenes, **options)
         scores.update({f"{m}_{suffix}": v for m, v in other.items() if m in VARIANT_METRICS})
     return scores
@@ -220,7 +227,9 @@ class ContinualTrainer:
             if method.trains:
                 self._train_task(ctx)
             for j, other in enumerate(self.tasks):
-                scores = evaluate_all(model, other.test, cfg.k, cfg.seed + j, cfg.eval_batch_scenes)
+                scores = evaluate_all(
+                    model, other.test, cfg.k, cfg.seed + j, cfg.eval_batch_scenes, cfg.test_rules
+                )
                 for metric, value in scores.items():
                     result.matrices.setdefault(metric, np.full((n, n), np.nan))[i, j] = value
             kept = method.memory_floats(model)

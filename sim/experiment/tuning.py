@@ -120,6 +120,11 @@ def _distribution(space: Tunable):
     return FloatDistribution(space.low, space.high, log=space.log)
 
 
+# what a trial's objective (the final point-prediction ADE) never reads, so trials skip it: the
+# diagnostics, the per-epoch validation curves and the latent models' other test-time rules
+TRIAL_TRAIN = {"diagnostics": False, "val_every": 0, "test_rules": False}
+
+
 def run_tuning(
     tune: TuneConfig, out: Path, execution: Execution | None = None
 ) -> dict[str, dict[str, Any]]:
@@ -156,7 +161,9 @@ def run_tuning(
             if count == 0 and not study.get_trials(deepcopy=False, states=(TrialState.WAITING,)):
                 study.enqueue_trial(_defaults(method, space, base))  # the defaults come first
             trial = study.ask({key: _distribution(s) for key, s in space.items()})
-            settings = layered(base, as_settings(method, trial.params))
+            params = as_settings(method, trial.params)
+            params["train"] = {**params.get("train", {}), **TRIAL_TRAIN}
+            settings = layered(base, params)
             config = replace(base, methods=(method,), settings=settings)
             folder = out / "trials" / method / f"trial_{count:03d}"
             resumed = (folder / "config.json").is_file()  # a trial a killed tuning began

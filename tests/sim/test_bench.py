@@ -56,6 +56,19 @@ def test_tuning_never_sees_a_test_split_or_a_later_task(tuned, tmp_path):
         assert task.test is original.val and task.test is not original.test
 
 
+def test_trials_skip_what_their_objective_never_reads_and_the_choice_keeps_it(tmp_path):
+    """A trial measures no diagnostics, no validation curves and no other test-time rule for
+    C (its objective is the final point-prediction ADE); the chosen settings carry none of it."""
+    base = ExperimentConfig("crowd_noise_0.1,0.2", methods=("c2inet-online",), quick=True)
+    chosen = run_tuning(TuneConfig(base, trials=1), tmp_path, Execution(cache=tmp_path / "c"))
+    trial = json.loads((tmp_path / "trials/c2inet-online/trial_000/metrics.json").read_text())
+    method = trial["methods"]["c2inet-online"]
+    assert "ade_k1" in method and "ade_c_prior" not in method
+    assert not method["diagnostics"]
+    assert not any(key.startswith("val_ade") for row in method["history"] for key in row)
+    assert "diagnostics" not in chosen["c2inet-online"]["settings"].get("train", {})
+
+
 def test_a_domain_without_validation_holds_out_the_end_of_its_training_scenes(tmp_path):
     curriculum = prepare(
         ExperimentConfig("eth_ucy_univ", methods=("cv",), quick=True, record=False),
