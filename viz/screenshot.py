@@ -25,7 +25,7 @@ from viz.cli import guarded, plain_parser
 from viz.serve import command, free_port, launch, stop, wait_for_port
 
 MIN_COLOURS = 500  # a blank page has under 10, the loading screen a few dozen
-SETTLE_S = 5.0  # after the first drawn frame: the views fill in, the data finishes streaming
+POLL_S = 3.0  # seconds between pictures: the viewer is done when two in a row are the same
 CHROMIUM_FLAGS = [
     "--no-sandbox",
     "--use-gl=angle",
@@ -48,11 +48,25 @@ def rendered(png: bytes | Path) -> bool:
     return len(np.unique(image.reshape(-1, image.shape[-1]), axis=0)) > MIN_COLOURS
 
 
+def drawn(page, deadline: float) -> bytes | None:
+    """The viewer's picture once it has drawn and then stopped changing (the recording has
+    streamed in: a large one takes minutes on a busy machine), polling every ``POLL_S``; the
+    last drawn picture at ``deadline``; None if it never drew."""
+    last = None
+    while time.monotonic() < deadline:
+        page.wait_for_timeout(POLL_S * 1000)
+        png = page.screenshot()
+        if last is not None and png == last:
+            return png
+        last = png if rendered(png) else None
+    return last
+
+
 def screenshot(
     recording: Path, out: Path, size: str = "1600,900", timeout_s: float = 300.0
 ) -> Path:
-    """Render ``recording`` in the web viewer and save ``out`` once it has drawn, polling every
-    two seconds for at most ``timeout_s``; raises RuntimeError on failure."""
+    """Render ``recording`` in the web viewer and save ``out`` once it has drawn and settled
+    (:func:`drawn`), within ``timeout_s``; raises RuntimeError if it never drew."""
     try:
         from playwright.sync_api import Error, sync_playwright
     except ImportError:
@@ -76,14 +90,10 @@ def screenshot(
             try:
                 page = browser.new_page(viewport={"width": width, "height": height})
                 page.goto(url, timeout=timeout_s * 1000)
-                deadline = time.monotonic() + timeout_s
-                while time.monotonic() < deadline:
-                    page.wait_for_timeout(2000)
-                    if rendered(page.screenshot()):
-                        page.wait_for_timeout(SETTLE_S * 1000)
-                        png = page.screenshot()
-                        write_atomic(out, lambda path, png=png: path.write_bytes(png))
-                        return out
+                png = drawn(page, time.monotonic() + timeout_s)
+                if png is not None:
+                    write_atomic(out, lambda path: path.write_bytes(png))
+                    return out
             except Error as error:
                 raise RuntimeError(f"chromium: {error.message.splitlines()[0]}") from None
             finally:
