@@ -62,11 +62,6 @@ def scalars(event: str, data: dict[str, Any], epochs: int, tasks: list[str]) -> 
             yield step, f"diagnostics/{key}", value
 
 
-def logger_name(spec: str) -> str:
-    """The logger a ``--logger`` entry names (``mlflow=URI`` names ``mlflow``)."""
-    return spec.split("=", 1)[0]
-
-
 def flat_params(tree: dict[str, Any], prefix: str = "") -> dict[str, str | int | float | bool]:
     """A nested configuration as ``scope.key`` parameters; lists and None as text."""
     out: dict[str, str | int | float | bool] = {}
@@ -144,8 +139,9 @@ class MLflowLogger:
             self.client.delete_run(old.info.run_id)  # a resumed job logs everything again
         run = self.client.create_run(experiment, run_name=job, tags={"c2i_job": job})
         self.run_id = run.info.run_id
-        params = options.get("params") or {}
-        self.client.log_batch(self.run_id, params=[_param(k, v) for k, v in params.items()])
+        params = [_param(k, v) for k, v in (options.get("params") or {}).items()]
+        for start in range(0, len(params), 100):  # MLflow takes 100 parameters a request
+            self.client.log_batch(self.run_id, params=params[start : start + 100])
 
     @staticmethod
     def experiment(run_folder: Path, uri: str | None = None):
@@ -171,8 +167,8 @@ class MLflowLogger:
             Metric(name, value, now, step)
             for step, name, value in scalars(event, data, self.epochs, self.tasks)
         ]
-        if metrics:
-            self.client.log_batch(self.run_id, metrics=metrics)
+        for start in range(0, len(metrics), 1000):  # and 1,000 metrics
+            self.client.log_batch(self.run_id, metrics=metrics[start : start + 1000])
 
     def close(self) -> None:
         self.client.set_terminated(self.run_id)

@@ -20,12 +20,13 @@ from sim.experiment import Execution, ExperimentConfig, run_experiment
 from sim.experiment.outputs import claim, output_folder
 
 QUICK = ["--scenario", "crowd_noise_0.1..0.3", "--quick", "--methods", "c2inet-online,finetune"]
-QUICK_CONFIG = {  # QUICK with --epochs 4, as the engine takes it
+QUICK_CONFIG = {  # QUICK with --epochs EPOCHS, as the engine takes it
     "scenario": "crowd_noise_0.1..0.3",
     "quick": True,
     "methods": ("c2inet-online", "finetune"),
-    "epochs": 4,
+    "epochs": 2,
 }
+EPOCHS = str(QUICK_CONFIG["epochs"])  # the runs of these tests, killed, resumed and parallel
 
 
 def start(out: Path, cache: Path, *extra: str, cwd: Path | None = None) -> subprocess.Popen:
@@ -53,7 +54,7 @@ def reference(tmp_path_factory):
     """An uninterrupted quick run: its folder, its metrics.json, and the domain cache it filled
     (the tests below read it rather than generate the same domains again)."""
     root = tmp_path_factory.mktemp("reference")
-    done = finish(start(root / "run", root / "cache", "--epochs", "4"))
+    done = finish(start(root / "run", root / "cache", "--epochs", EPOCHS))
     assert done.returncode == 0, done.stderr
     return root / "run", (root / "run" / "metrics.json").read_bytes(), root / "cache"
 
@@ -77,14 +78,14 @@ def wait_for(process: subprocess.Popen, path: Path, seconds: float = 120) -> Non
 def test_killed_runs_resume_to_the_same_metrics(tmp_path, reference, moment):
     out = tmp_path / "run"
     cache = tmp_path / "cache" if moment == "config.json" else reference[2]  # killed generating
-    process = start(out, cache, "--epochs", "4")
+    process = start(out, cache, "--epochs", EPOCHS)
     wait_for(process, out / moment)
     process.send_signal(signal.SIGKILL)
     assert process.wait() == -signal.SIGKILL
     assert not (out / "metrics.json").exists() and not (out / "recording.rrd").exists()
     with pytest.raises(InputError, match="--resume"):  # never mixed into
         claim(out, ExperimentConfig(**QUICK_CONFIG), Execution())
-    resumed = finish(start(out, cache, "--epochs", "4", "--resume"))
+    resumed = finish(start(out, cache, "--epochs", EPOCHS, "--resume"))
     assert resumed.returncode == 0, resumed.stderr
     assert (out / "metrics.json").read_bytes() == reference[1]
     assert (out / "recording.rrd").stat().st_size > 0
@@ -93,7 +94,7 @@ def test_killed_runs_resume_to_the_same_metrics(tmp_path, reference, moment):
 
 def test_ctrl_c_leaves_one_line_and_a_command_that_resumes(tmp_path, reference):
     out = tmp_path / "run"
-    process = start(out, reference[2], "--epochs", "4")
+    process = start(out, reference[2], "--epochs", EPOCHS)
     wait_for(process, out / "jobs/c2inet-online/seed_0/checkpoints/task_00.pt")
     process.send_signal(signal.SIGINT)
     stopped = finish(process)
@@ -117,7 +118,7 @@ def test_parallel_jobs_give_the_same_metrics(tmp_path, reference, backend):
         "sim.run",
         *QUICK,
         "--epochs",
-        "4",
+        EPOCHS,
         "--seeds",
         "1",
         "--jobs",
