@@ -63,7 +63,7 @@ class FilesKnobs:
 def read_recording(path: Path, knobs: dict[str, Any]) -> list[Scene]:
     """The scenes of one file as a files domain's resolved ``knobs`` say to read it."""
     if knobs.get("format") == "trajnetpp":
-        return trajnet_scenes(path, knobs.get("scale", 1.0))
+        return trajnet_scenes(path, knobs.get("scale", 1.0), knobs.get("every", 1))
     reading = {key: knobs[key] for key in ("format", "scale", "every", "labels") if key in knobs}
     return read_trajectory_file(path, knobs["split_gaps"], **reading)
 

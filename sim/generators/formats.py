@@ -50,9 +50,10 @@ def sdd_rows(path: Path, start: int, lines: list[str], labels: tuple[str, ...]) 
     return out
 
 
-def trajnet_scenes(path: Path, scale: float = 1.0) -> list[Scene]:
+def trajnet_scenes(path: Path, scale: float = 1.0, every: int = 1) -> list[Scene]:
     """The scenes of one TrajNet++ ndjson file: each scene record's frames ``s`` to ``e`` on the
-    file's frame grid, every track present in them, the primary agent ``p`` first."""
+    file's frame grid (of the frames whose id is a multiple of ``every``), every track present
+    in them, the primary agent ``p`` first."""
     records, tracks = [], []
     try:
         with path.open(encoding="utf-8") as file:
@@ -64,6 +65,9 @@ def trajnet_scenes(path: Path, scale: float = 1.0) -> list[Scene]:
     if not records or not tracks:
         raise InputError(f"{path}: needs scene and track records (TrajNet++ ndjson)")
     rows = np.array(tracks, dtype=float)
+    rows = rows[rows[:, 0] % every == 0] if every > 1 else rows
+    if not len(rows):
+        raise InputError(f"{path}: no track rows on frames that are multiples of {every}")
     rows = rows[np.lexsort((rows[:, 1], rows[:, 0]))]  # by frame, then agent
     frames = np.unique(rows[:, 0])
     step = float(np.diff(frames).min()) if len(frames) > 1 else 1.0

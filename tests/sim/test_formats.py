@@ -102,6 +102,8 @@ def test_trajnetpp_scenes_keep_their_frames_and_their_primary_first(tmp_path):
     np.testing.assert_allclose(first.positions[0, 0], [2.0, -2.0])
     np.testing.assert_allclose(second.positions[20, 0], [4.0, -1.0])  # agent 1 at frame 300
     assert np.isfinite(second.positions[:6, 2]).all() and np.isnan(second.positions[6:, 2]).all()
+    thinned, _ = trajnet_scenes(trajnet_fixture(tmp_path), every=20)  # frames 0, 20, ..., 200
+    np.testing.assert_array_equal(thinned.positions, first.positions[::2])
 
 
 def test_trajnetpp_family_windows_every_scene(tmp_path):
