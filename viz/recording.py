@@ -35,6 +35,9 @@ Colour = tuple[int, int, int]
 Bounds = tuple[float, float, float, float]  # x_min, x_max, y_min, y_max
 SAMPLES, BEST, TRUTH = 10.0, 20.0, 30.0  # draw orders: higher is drawn above
 THIN = rr.Radius.ui_points(1.0)  # a sample line, whatever the scene's size
+# the curves' legend where they rarely run: the first task's curve starts low and later tasks'
+# start to its right and higher
+CORNER = rrb.PlotLegend(corner=rrb.Corner2D.LeftTop)
 
 
 def curve_views(methods: list[str]) -> list[tuple[str, list[str]]]:
@@ -90,7 +93,10 @@ def default_blueprint(
             rrb.Tabs(*tabs),
             rrb.Vertical(
                 rrb.Tabs(
-                    *(rrb.TimeSeriesView(origin="/curves", contents=c, name=n) for n, c in curves),
+                    *(
+                        rrb.TimeSeriesView(origin="/curves", contents=c, name=n, plot_legend=CORNER)
+                        for n, c in curves
+                    ),
                     rrb.TimeSeriesView(origin="/diagnostics", name="diagnostics after each task"),
                 ),
                 rrb.Tabs(
