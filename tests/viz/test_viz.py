@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import rerun.blueprint as rrb
 from rerun.chunk import RrdReader
 
 from viz.colours import faint, method_colour, task_shade
@@ -186,6 +187,12 @@ def test_every_scene_and_rollout_view_opens_framed_on_its_truth(recorded):
         if c.entity_path.endswith("/VisualBounds2D")
     ]
     assert len(views) == len(TASKS) * 5  # four sample scenes and a rollout per task
+    corners = [
+        c.to_record_batch().column("PlotLegend:corner").to_pylist()[0][0]
+        for c in reader.stream(store=reader.blueprints()[0])
+        if c.entity_path.endswith("/PlotLegend")
+    ]
+    assert corners == [rrb.Corner2D.LeftTop.value] * len(curve_views(["m"]))  # off the curves
     points = np.array([[0.0, 0.0], [4.0, 1.0], [np.nan, np.nan]])
     x0, x1, y0, y1 = extent(points, margin=0.25)
     assert (x0, x1) == (-1.0, 5.0) and (y0, y1) == (-2.5, 3.5)  # square, 0.25 of 4 m a side
