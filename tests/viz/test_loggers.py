@@ -1,0 +1,51 @@
+"""The trackers on their own: what they keep, read back from their stores."""
+
+from pathlib import Path
+
+import pytest
+
+from viz.loggers import MLflowLogger, flat_params, prepare_tracking
+
+MlflowClient = pytest.importorskip("mlflow.tracking").MlflowClient
+
+
+def test_flat_params_name_each_setting_by_its_scope():
+    tree = {"model": {"c_dim": 8, "sizes": [1, 2]}, "train": {"lr": 0.003}, "none": None}
+    assert flat_params(tree) == {
+        "model.c_dim": 8,
+        "model.sizes": "[1, 2]",
+        "train.lr": 0.003,
+        "none": "None",
+    }
+
+
+def test_mlflow_keeps_every_parameter_and_metric_in_requests_a_server_takes(
+    tmp_path: Path, monkeypatch
+):
+    """A tracking server takes 100 parameters and 1,000 metrics a request (the local store
+    takes more, so each request is watched): a job with more loses none, and a resumed job's
+    earlier run is replaced, not doubled."""
+    run = tmp_path / "runs" / "20261202-000000"
+    job = run / "jobs" / "finetune" / "seed_0"
+    job.mkdir(parents=True)
+    prepare_tracking(("mlflow",), run)
+    params = {f"p{i:03d}": i for i in range(250)}
+    tasks = [f"t{i}" for i in range(400)]
+    row = {metric: [0.5] * 400 for metric in ("ade", "fde", "ade_k1")}  # 1,200 numbers
+    sizes, batch = [], MlflowClient.log_batch
+
+    def watched(client, run_id, metrics=(), params=(), **kwargs):
+        sizes.append((len(metrics), len(params)))
+        return batch(client, run_id, metrics=metrics, params=params, **kwargs)
+
+    monkeypatch.setattr(MlflowClient, "log_batch", watched)
+    for _ in range(2):  # the second is the job resumed
+        logger = MLflowLogger(job, 2, tasks, run_folder=run, params=params)
+        logger("task_end", {"task": 0, "row": row})
+        logger.close()
+    assert all(m <= 1000 and p <= 100 for m, p in sizes)
+    assert max(m for m, _ in sizes) == 1000 and max(p for _, p in sizes) == 100
+    experiment = logger.client.get_experiment_by_name("runs/20261202-000000")
+    (tracked,) = logger.client.search_runs([experiment.experiment_id])
+    assert len(tracked.data.params) == 250 and tracked.data.params["p249"] == "249"
+    assert len(tracked.data.metrics) == 1200
