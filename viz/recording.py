@@ -64,6 +64,8 @@ def extent(points: np.ndarray, margin: float = 0.15) -> Bounds:
     every side (at least 1 m across)."""
     flat = points.reshape(-1, 2)
     flat = flat[np.isfinite(flat).all(1)]
+    if not len(flat):  # nothing recorded: a metre around the origin
+        return (-1.0, 1.0, -1.0, 1.0)
     low, high = flat.min(0), flat.max(0)
     centre, half = (low + high) / 2, max(float((high - low).max()) / 2, 0.5) * (1 + 2 * margin)
     return (centre[0] - half, centre[0] + half, centre[1] - half, centre[1] + half)

@@ -196,6 +196,7 @@ def test_every_scene_and_rollout_view_opens_framed_on_its_truth(recorded):
     points = np.array([[0.0, 0.0], [4.0, 1.0], [np.nan, np.nan]])
     x0, x1, y0, y1 = extent(points, margin=0.25)
     assert (x0, x1) == (-1.0, 5.0) and (y0, y1) == (-2.5, 3.5)  # square, 0.25 of 4 m a side
+    assert extent(np.full((3, 2), np.nan)) == (-1.0, 1.0, -1.0, 1.0)  # nothing to frame
 
 
 def test_recording_verifies_and_stays_small(recorded, env):
