@@ -377,9 +377,7 @@ def doubled_number(job: Path) -> None:
 def test_resume_refuses_damaged_or_foreign_work(tmp_path, reference, tamper, message):
     """Issue 26, item 2: each of these resumed with exit 0 and other metrics."""
     out = tampered(reference, tmp_path, tamper)
-    config = ExperimentConfig(
-        "crowd_noise_0.1..0.3", methods=("c2inet-online", "finetune"), quick=True, epochs=4
-    )
+    config = ExperimentConfig(**QUICK_CONFIG)
     with pytest.raises(InputError, match=message):
         run_experiment(config, out, Execution(cache=reference[2]), resume=True)
 
