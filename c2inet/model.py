@@ -351,7 +351,7 @@ class C2INetModel(Predictor):
         share = self.config.context_dropout
         if not share or not self.sees_context(self.config):
             return cond
-        width = BACKBONES[self.config.backbone].context_dim
+        width = self.backbone.context_dim
         keep = (torch.rand(cond.shape[1], 1) >= share).to(cond.dtype)
         return torch.cat([cond[..., :width] * keep, cond[..., width:]], -1)
 

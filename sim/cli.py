@@ -272,7 +272,7 @@ def add_experiment_options(
             "--logger",
             default="",
             help="also log every job's curves: csv, tensorboard, mlflow (the run's own "
-            "mlruns/ store) or mlflow=URI (a tracking server); comma-separated",
+            "mlflow.db store) or mlflow=URI (a tracking server); comma-separated",
         )
 
 

@@ -38,13 +38,15 @@ class RecordingObserver:
     seed: int = 0
     final_predictions: dict[str, np.ndarray] = field(default_factory=dict)  # task -> (K, A, T, 2)
 
+    @property
+    def tasks(self) -> list[str]:
+        return [s.task for s in self.showcases]
+
     def __call__(self, event: str, data: dict[str, Any]) -> None:
         if event == "epoch_end":
             epoch = epoch_step(data["task"], data["epoch"], self.epochs)
-            tasks = [s.task for s in self.showcases]
-            self.recorder.log_epoch(
-                self.method, {**data, "global_epoch": epoch}, self.colour, tasks
-            )
+            record = {**data, "global_epoch": epoch}
+            self.recorder.log_epoch(self.method, record, self.colour, self.tasks)
         elif event == "task_end":
             self._task_end(data)
 
@@ -55,8 +57,7 @@ class RecordingObserver:
     def _task_end(self, data: dict[str, Any]) -> None:
         model, trained = data["model"], data["task"]
         when = {"task": trained, "epoch": task_step(trained, self.epochs)}
-        tasks = [s.task for s in self.showcases]
-        self.recorder.log_matrix_row(self.method, when, tasks, data["row"], self.colour)
+        self.recorder.log_matrix_row(self.method, when, self.tasks, data["row"], self.colour)
         if data.get("diagnostics"):
             self.recorder.log_diagnostics(self.method, when, data["diagnostics"], self.colour)
         queue = getattr(model, "queue", None)

@@ -40,11 +40,11 @@ CHROMIUM_FLAGS = [
 ]
 
 
-def rendered(png: bytes | Path) -> bool:
+def rendered(png: bytes) -> bool:
     """True when the picture shows a drawn viewer, not a blank or loading page (few colours)."""
     from matplotlib.image import imread
 
-    image = imread(io.BytesIO(png) if isinstance(png, bytes) else png, format="png")
+    image = imread(io.BytesIO(png), format="png")
     return len(np.unique(image.reshape(-1, image.shape[-1]), axis=0)) > MIN_COLOURS
 
 

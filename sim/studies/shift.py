@@ -166,7 +166,8 @@ def shift_markdown(summary: dict[str, Any]) -> str:
                 f"Rank correlation of forgetting with the knob shift {p['rank_knob']:+.2f}, "
                 f"with the statistics distance {p['rank_statistics']:+.2f}."
                 if not np.isnan(p["rank_knob"])
-                else f"No rank correlation: it needs {MIN_RANKED} or more shifts."
+                else f"No rank correlation: it needs {MIN_RANKED} or more shifts and a "
+                "forgetting that varies."
             )
             lines.append(
                 f"- {m}: forgets most ({p['forgetting']:+.3f}) at a shift of {p['shift']:+g}; "
