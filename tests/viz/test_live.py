@@ -75,3 +75,24 @@ def test_a_screenshot_without_playwright_says_what_to_install(tmp_path, monkeypa
     with pytest.raises(RuntimeError, match=r"pip install '\.\[screenshot\]'"):
         shot.screenshot(tmp_path / "r.rrd", tmp_path / "out.png")
     assert not (tmp_path / "out.png").exists()
+
+
+def test_the_screenshot_waits_for_the_recording_to_stream_in(monkeypatch):
+    """Pictures as the viewer loads: a loading screen, two drawn frames that differ (data still
+    arriving), then the same frame twice; the settled one is kept, not the first drawn."""
+    import viz.screenshot as shot
+
+    frames = iter([b"loading", b"drawn, epoch 39", b"drawn, epoch 119", b"drawn, epoch 119"])
+
+    class Page:
+        def wait_for_timeout(self, ms):
+            pass
+
+        def screenshot(self):
+            return next(frames)
+
+    monkeypatch.setattr(shot, "rendered", lambda png: png.startswith(b"drawn"))
+    assert shot.drawn(Page(), deadline=float("inf")) == b"drawn, epoch 119"
+    never = iter([b"loading"] * 3)
+    monkeypatch.setattr(Page, "screenshot", lambda self: next(never))
+    assert shot.drawn(Page(), deadline=shot.time.monotonic() + 0.0) is None
