@@ -71,7 +71,7 @@ def run(job, root: Path, quick: bool) -> tuple[str, float]:
     if (out / "config.json").exists():  # an interrupted run continues where it stopped
         command.append("--resume")
     start = time.perf_counter()
-    root.mkdir(parents=True, exist_ok=True)
+    out.parent.mkdir(parents=True, exist_ok=True)
     with open(root / f"{name}.log", "a") as log:
         subprocess.run(command, stdout=log, stderr=subprocess.STDOUT, check=True)
     return name, time.perf_counter() - start
