@@ -68,7 +68,7 @@ class Batch:
         shape = (*x.shape[:-2], self.num_scenes, self.max_agents, x.shape[-1])
         padded = x.new_zeros(shape)
         padded[..., self.scene_of, self.slot_of, :] = x
-        mask = torch.zeros(self.num_scenes, self.max_agents, dtype=torch.bool)
+        mask = torch.zeros(self.num_scenes, self.max_agents, dtype=torch.bool, device=x.device)
         mask[self.scene_of, self.slot_of] = True
         return padded, mask
 
@@ -76,30 +76,38 @@ class Batch:
         return padded[..., self.scene_of, self.slot_of, :]
 
 
-def make_batch(windows: Windows, scenes: np.ndarray | None = None) -> Batch:
-    """The batch of the given scenes of ``windows`` (all scenes when None)."""
+def make_batch(
+    windows: Windows, scenes: np.ndarray | None = None, device: torch.device | str = "cpu"
+) -> Batch:
+    """The batch of the given scenes of ``windows`` (all scenes when None), on ``device``."""
     part = windows if scenes is None else windows.subset(scenes)
-    positions = torch.from_numpy(np.ascontiguousarray(part.positions.transpose(1, 0, 2)))
+    positions = np.ascontiguousarray(part.positions.transpose(1, 0, 2))
     counts = part.agents_per_scene
     scene_of = np.repeat(np.arange(len(counts)), counts)
     slot_of = np.arange(len(scene_of)) - np.repeat(part.scene_start[:-1], counts)
+    positions, scene_start, scene_of, slot_of = (
+        torch.as_tensor(a, device=device) for a in (positions, part.scene_start, scene_of, slot_of)
+    )
     return Batch(
         obs=positions[: part.obs_len],
         fut=positions[part.obs_len :],
-        scene_start=torch.from_numpy(part.scene_start),
-        scene_of=torch.from_numpy(scene_of),
-        slot_of=torch.from_numpy(slot_of),
+        scene_start=scene_start,
+        scene_of=scene_of,
+        slot_of=slot_of,
         max_agents=int(counts.max()),
     )
 
 
 def batches(
-    windows: Windows, batch_scenes: int, rng: np.random.Generator | None = None
+    windows: Windows,
+    batch_scenes: int,
+    rng: np.random.Generator | None = None,
+    device: torch.device | str = "cpu",
 ) -> Iterator[Batch]:
-    """Batches of ``batch_scenes`` scenes, shuffled when ``rng`` is given."""
+    """Batches of ``batch_scenes`` scenes on ``device``, shuffled when ``rng`` is given."""
     order = rng.permutation(len(windows)) if rng is not None else np.arange(len(windows))
     for first in range(0, len(order), batch_scenes):
-        yield make_batch(windows, order[first : first + batch_scenes])
+        yield make_batch(windows, order[first : first + batch_scenes], device)
 
 
 def scene_mean(per_agent: torch.Tensor, batch: Batch) -> torch.Tensor:

@@ -4,8 +4,9 @@ arcs and raises :class:`MethodCheckError` naming the first broken promise.
 It checks what every method owes the trainer: a documented contract, finite and consistent
 metrics, the same numbers for the same seed, a resume after any task equal to an uninterrupted
 run (all the method keeps goes through ``state_dict``), results up to a task that never depend on
-a later task's data, and, for methods that name the options switching their mechanism off
-(``Method.inert``), that switching it off changes the numbers: a mechanism that is live.
+a later task's data, every tensor made on the model's device (:class:`DeviceAudit`), and, for
+methods that name the options switching their mechanism off (``Method.inert``), that switching
+it off changes the numbers: a mechanism that is live.
 
     from c2inet.checker import check_method
     check_method(get_method("lwf"))
@@ -20,6 +21,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
+from torch.overrides import _get_current_function_mode_stack
+from torch.utils._device import DeviceContext
 
 from c2inet.data import Windows
 from c2inet.methods.base import Method
@@ -36,6 +40,52 @@ HOOKS = (
     "after_task",
 )
 CHECK_CONFIG = TrainConfig(epochs=2, k=3, k_train=2, diagnostics=False)
+# the tensor factories that take a device; ``*_like`` and ``Tensor.new_*`` follow their input
+FACTORIES = ("zeros", "ones", "empty", "full", "arange", "linspace", "eye", "tensor", "as_tensor")
+FACTORIES += ("rand", "randn", "randint", "randperm")
+TORCH_ROOT = str(Path(torch.__file__).parent)
+
+
+class DeviceAudit:
+    """Notes every tensor factory called from code under ``roots`` without a ``device`` (and
+    outside a ``with torch.device(...)`` block, which names one): such a tensor lands on the
+    default device (the CPU) whatever the model's, and a run on a GPU fails or copies. Works on
+    a CPU-only machine, by wrapping the factories while it is entered; torch's own calls are
+    not the learner's to fix.
+
+        with DeviceAudit([Path(c2inet.__file__).parent]) as audit:
+            ...
+        audit.found  # {".../c2inet/model.py:140", ...}
+    """
+
+    def __init__(self, roots: list[Path]):
+        self.roots = tuple(str(r) for r in roots)
+        self.found: set[str] = set()
+        self._originals = {name: getattr(torch, name) for name in FACTORIES}
+
+    def __enter__(self) -> DeviceAudit:
+        for name, original in self._originals.items():
+            setattr(torch, name, self._audited(original))
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for name, original in self._originals.items():
+            setattr(torch, name, original)
+
+    def _audited(self, factory):
+        def audited(*args, **kwargs):
+            if kwargs.get("device") is None and not _in_device_block():
+                caller = sys._getframe(1)  # the Python line that called the factory
+                path = caller.f_code.co_filename
+                if path.startswith(self.roots) and not path.startswith(TORCH_ROOT):
+                    self.found.add(f"{path}:{caller.f_lineno}")
+            return factory(*args, **kwargs)
+
+        return audited
+
+
+def _in_device_block() -> bool:
+    return any(isinstance(m, DeviceContext) for m in _get_current_function_mode_stack())
 
 
 class MethodCheckError(AssertionError):
@@ -75,6 +125,7 @@ def _run(
     options: dict[str, Any] | None = None,
     folder: Path | None = None,
     resume: bool = False,
+    config: TrainConfig = CHECK_CONFIG,
 ) -> tuple[Result, list[tuple]]:
     """A run of the method and the events its observers received."""
     events: list[tuple] = []
@@ -84,7 +135,7 @@ def _run(
         events.append((event, key, data.get("row") or data.get("nll")))
 
     method = cls(ModelConfig(), options)
-    trainer = ContinualTrainer(method, tasks, CHECK_CONFIG, folder, [observe])
+    trainer = ContinualTrainer(method, tasks, config, folder, [observe])
     return trainer.run(resume=resume), events
 
 
@@ -136,52 +187,63 @@ def check_metrics(cls: type[Method], result: Result) -> None:
 
 
 def check_determinism_and_resume(
-    cls: type[Method], tasks: list[Task], whole: Result, events: list
+    cls: type[Method], tasks: list[Task], whole: Result, events: list, config=CHECK_CONFIG
 ) -> None:
     """A second run with the same seed gives the same numbers and events; resuming it after
     each finished task (from its own checkpoints) gives them again."""
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        again, again_events = _run(cls, tasks, folder=folder)
+        again, again_events = _run(cls, tasks, folder=folder, config=config)
         if not _same(again, whole) or again.history != whole.history or again_events != events:
             _fail(cls, "two runs with the same seed differ")
         for finished in range(1, len(tasks)):
             for later in range(finished, len(tasks)):
                 (folder / f"task_{later:02d}.pt").unlink(missing_ok=True)
-            resumed, resumed_events = _run(cls, tasks, folder=folder, resume=True)
+            resumed, resumed_events = _run(cls, tasks, folder=folder, resume=True, config=config)
             if not _same(resumed, whole) or resumed.history != whole.history:
                 _fail(cls, f"a run resumed after task {finished - 1} gives other numbers")
             if resumed.summaries != whole.summaries or resumed_events != events:
                 _fail(cls, f"a run resumed after task {finished - 1} reports other events")
 
 
-def check_no_peeking(cls: type[Method], tasks: list[Task], whole: Result) -> None:
+def check_no_peeking(cls: type[Method], tasks: list[Task], whole: Result, config=CHECK_CONFIG):
     """Results after task i never depend on the training data of a later task."""
     last = tasks[-1]
     other = turners(float(last.value) + 0.15, len(last.train), seed=999)
     changed = [*tasks[:-1], dataclasses.replace(last, train=other, val=other.subset([0, 1]))]
-    result, _ = _run(cls, changed)
+    result, _ = _run(cls, changed, config=config)
     if not _same(result, whole, slice(None, -1)):
         _fail(cls, "results before the last task changed with the last task's training data")
     if cls.trains and _same(result, whole):
         _fail(cls, "the last task's training data changed nothing: is it trained on?")
 
 
-def check_live(cls: type[Method], tasks: list[Task], whole: Result) -> None:
+def check_devices(cls: type[Method], audit: DeviceAudit) -> None:
+    """Every tensor the run made was made on the model's device (see :class:`DeviceAudit`)."""
+    if audit.found:
+        _fail(cls, f"makes tensors without naming a device at {', '.join(sorted(audit.found))}")
+
+
+def check_live(cls: type[Method], tasks: list[Task], whole: Result, config=CHECK_CONFIG):
     """Switching the method's mechanism off (``cls.inert``) must change the numbers."""
     if cls.inert is None:
         return
-    result, _ = _run(cls, tasks, cls.inert)
+    result, _ = _run(cls, tasks, cls.inert, config=config)
     if _same(result, whole):
         _fail(cls, f"its mechanism is inert: options {cls.inert} change nothing")
 
 
-def check_method(cls: type[Method]) -> None:
-    """Every check above, on three tasks of arcs turning 0.1, 0.2 and 0.3 rad per frame."""
+def check_method(cls: type[Method], device: str = "cpu") -> None:
+    """Every check above, on three tasks of arcs turning 0.1, 0.2 and 0.3 rad per frame, with
+    the models on ``device``."""
     check_contract(cls)
     tasks = turning_tasks(turns=(0.1, 0.2, 0.3))
-    whole, events = _run(cls, tasks)
+    config = dataclasses.replace(CHECK_CONFIG, device=device)
+    roots = [Path(__file__).parent, Path(sys.modules[cls.__module__].__file__).parent]
+    with DeviceAudit(roots) as audit:
+        whole, events = _run(cls, tasks, config=config)
+    check_devices(cls, audit)
     check_metrics(cls, whole)
-    check_determinism_and_resume(cls, tasks, whole, events)
-    check_no_peeking(cls, tasks, whole)
-    check_live(cls, tasks, whole)
+    check_determinism_and_resume(cls, tasks, whole, events, config)
+    check_no_peeking(cls, tasks, whole, config)
+    check_live(cls, tasks, whole, config)

@@ -84,5 +84,7 @@ class Windows:
     @staticmethod
     def from_state(state: dict[str, torch.Tensor | int]) -> Windows:
         return Windows(
-            state["positions"].numpy(), state["scene_start"].numpy(), int(state["obs_len"])
+            state["positions"].cpu().numpy(),
+            state["scene_start"].cpu().numpy(),
+            int(state["obs_len"]),
         )

@@ -20,6 +20,7 @@ import torch
 
 from c2inet.batch import make_batch
 from c2inet.data import Windows
+from c2inet.device import model_device, seeded
 from c2inet.prior import (
     gaussian_log_prob,
     gaussian_sample,
@@ -123,7 +124,8 @@ def mutual_information(mean: torch.Tensor, logvar: torch.Tensor, samples: int = 
 
     Over n inputs it is at most log n: read it against that bound.
     """
-    c = gaussian_sample(mean, logvar, torch.randn(samples, *mean.shape))  # (S, n, d)
+    noise = torch.randn(samples, *mean.shape, device=mean.device)
+    c = gaussian_sample(mean, logvar, noise)  # (S, n, d)
     return float(minibatch_mutual_information(c, mean, logvar))
 
 
@@ -146,12 +148,11 @@ def diagnose(
         return out
     was_training = model.training
     model.eval()
-    batches = [make_batch(w) for w in tests]
-    context = np.concatenate([b.pool(model.context(b)).numpy() for b in batches])
+    batches = [make_batch(w, device=model_device(model)) for w in tests]
+    context = np.concatenate([b.pool(model.context(b)).cpu().numpy() for b in batches])
     out["probe_context"] = _rounded(probe_accuracy(context, labels, seed))
     if hasattr(model, "posteriors"):
-        with torch.random.fork_rng(devices=[]):
-            torch.manual_seed(seed)
+        with seeded(seed, model_device(model)):
             out.update(_confounder(model, batches, labels, values, seed))
     model.train(was_training)
     return out
@@ -167,7 +168,8 @@ def _confounder(model, batches, labels, values, seed) -> dict[str, Any]:
     prior = queue.training_prior()  # the prior the KL was trained against
     shifts = []
     for batch, post in zip(batches, posts, strict=True):
-        c = gaussian_sample(post.c_mean, post.c_logvar, torch.randn(cfg.n_mc, *post.c_mean.shape))
+        noise = torch.randn(cfg.n_mc, *post.c_mean.shape, device=post.c_mean.device)
+        c = gaussian_sample(post.c_mean, post.c_logvar, noise)
         kl_c = (gaussian_log_prob(c, post.c_mean, post.c_logvar) - prior.log_prob(c)).mean(0)
         kl_z = kl_standard_normal(*model.z_posterior(batch, post, c)).mean(0)
         out["kl_c"].append(_rounded(model.per_scene(kl_c, batch).mean()))
@@ -178,19 +180,19 @@ def _confounder(model, batches, labels, values, seed) -> dict[str, Any]:
             out[key].append(_rounded((pred - batch.fut).norm(dim=-1).mean()))
         shifts.append((at_mean - at_prior).norm(dim=-1).mean(0))
     out["c_effect"] = _rounded(torch.cat(shifts).mean())  # metres the prediction moves with C
-    counts = np.concatenate([b.agent_counts.numpy() for b in batches])
+    counts = np.concatenate([b.agent_counts.cpu().numpy() for b in batches])
     if not model.c_per_scene:  # one C per agent: pool it per scene for the probe
         c_scene = torch.cat([b.pool(p.c_mean) for b, p in zip(batches, posts, strict=True)])
         c_labels = np.repeat(labels, counts)
     else:
         c_scene, c_labels = c_mean, labels
-    subset = torch.randperm(len(c_mean))[:MI_INPUTS]
+    subset = torch.randperm(len(c_mean), device=c_mean.device)[:MI_INPUTS]
     out["mi_xc"] = _rounded(mutual_information(c_mean[subset], c_logvar[subset]))
     out["mi_bound"] = _rounded(math.log(len(subset)))
-    out["probe_c"] = _rounded(probe_accuracy(c_scene.numpy(), labels, seed))
+    out["probe_c"] = _rounded(probe_accuracy(c_scene.cpu().numpy(), labels, seed))
     mixture = queue.mixture
     responsibility = responsibilities(mixture, c_mean, c_logvar)  # p(k | X), (n, K)
-    owners = torch.tensor(queue.owners)
+    owners = torch.tensor(queue.owners, device=c_mean.device)
     tasks = len(batches)
     share = [
         [
@@ -206,7 +208,7 @@ def _confounder(model, batches, labels, values, seed) -> dict[str, Any]:
         "share": share,  # share[j][i]: responsibility of task i's components on task j's scenes
     }
     # each agent's most responsible component's owner task, against its true domain
-    owner_task = owners[responsibility.argmax(-1)].numpy()
+    owner_task = owners[responsibility.argmax(-1)].cpu().numpy()
     domain = np.repeat(labels, counts)
     if model.c_per_scene:
         owner_task = np.repeat(owner_task, counts)
@@ -217,5 +219,5 @@ def _confounder(model, batches, labels, values, seed) -> dict[str, Any]:
         out["nmi"] = _rounded(normalized_mutual_info_score(domain, owner_task))
     if all(v is not None for v in values):
         knob = np.array([values[i] for i in labels], dtype=np.float64)
-        out["knob_r2"] = _rounded(knob_r2(c_scene.numpy(), knob, seed))
+        out["knob_r2"] = _rounded(knob_r2(c_scene.cpu().numpy(), knob, seed))
     return out

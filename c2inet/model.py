@@ -137,7 +137,9 @@ class Predictor(nn.Module):
         return self.backbone.decode(cond, batch.obs_rel[-1] / batch.scale)
 
     def _context_with_noise(self, context: torch.Tensor, samples: int) -> torch.Tensor:
-        noise = torch.randn(samples, context.shape[0], self.config.latent_dim)
+        noise = torch.randn(
+            samples, context.shape[0], self.config.latent_dim, device=context.device
+        )
         return torch.cat([context.expand(samples, *context.shape), noise], -1)
 
     def nll(self, batch: Batch, pred_rel: torch.Tensor) -> torch.Tensor:
@@ -222,7 +224,7 @@ class Anchors:
             self.cond[index],
             self.last_rel[index],
             self.future[:, index],
-            self.inputs.subset(index.numpy()),
+            self.inputs.subset(index.cpu().numpy()),
             self.c_mean[index],
             self.c_logvar[index],
         )
@@ -314,7 +316,7 @@ class C2INetModel(Predictor):
         mc, lc = post.c_mean, post.c_logvar
         mixture = self.queue.mixture
         if c_source == "posterior":
-            return gaussian_sample(mc, lc, torch.randn(samples, *mc.shape))
+            return gaussian_sample(mc, lc, torch.randn(samples, *mc.shape, device=mc.device))
         if c_source == "posterior_mean":
             return mc.expand(samples, *mc.shape)
         if c_source == "prior":  # the back-door average over P(C), Eq 16
@@ -322,7 +324,7 @@ class C2INetModel(Predictor):
         if c_source == "responsible":  # k ~ p(k | X), then c from component k
             weights = responsibilities(mixture, mc, lc)  # (n, K)
             k = torch.multinomial(weights, samples, replacement=True).T  # (S, n)
-            noise = torch.randn(samples, *mc.shape)
+            noise = torch.randn(samples, *mc.shape, device=mc.device)
             return gaussian_sample(mixture.means[k], mixture.logvars[k], noise)
         raise ValueError(f"c_source {c_source!r}: expected one of {', '.join(C_SOURCES)}")
 
@@ -352,7 +354,7 @@ class C2INetModel(Predictor):
         if not share or not self.sees_context(self.config):
             return cond
         width = self.backbone.context_dim
-        keep = (torch.rand(cond.shape[1], 1) >= share).to(cond.dtype)
+        keep = (torch.rand(cond.shape[1], 1, device=cond.device) >= share).to(cond.dtype)
         return torch.cat([cond[..., :width] * keep, cond[..., width:]], -1)
 
     def per_scene(self, per_c: torch.Tensor, batch: Batch) -> torch.Tensor:
@@ -370,7 +372,8 @@ class C2INetModel(Predictor):
         q = self.queue.config
         if self.anchors is None or not (q.distill_decoder or q.distill_encoder):
             return None, False, False
-        anchors = self.anchors.select(torch.randperm(len(self.anchors))[: q.anchor_batch])
+        chosen = torch.randperm(len(self.anchors), device=self.anchors.cond.device)
+        anchors = self.anchors.select(chosen[: q.anchor_batch])
         return anchors, q.distill_decoder, q.distill_encoder
 
     def _decode(
@@ -398,7 +401,7 @@ class C2INetModel(Predictor):
             error = ((future - anchors.future) ** 2).sum(dim=(0, 2)).mean()
             held["distill_decoder"] = error / (2 * self.config.likelihood_std**2)
         if encoder:  # its own encoder call: padded into the batch, each would take A slots
-            post = self.posteriors(make_batch(anchors.inputs))
+            post = self.posteriors(make_batch(anchors.inputs, device=anchors.cond.device))
             skl = symmetric_kl(post.c_mean, post.c_logvar, anchors.c_mean, anchors.c_logvar)
             held["distill_encoder"] = skl.mean()
         return held
@@ -477,12 +480,13 @@ class C2INetModel(Predictor):
 @torch.no_grad()
 def make_anchors(model: C2INetModel, components: GaussianMixture, count: int) -> Anchors:
     """Anchors of one task: latents from its components and what the network made of them."""
-    z, c = torch.randn(1, count, model.config.z_dim), components.sample(count)[None]
+    device = components.means.device
+    z, c = torch.randn(1, count, model.config.z_dim, device=device), components.sample(count)[None]
     past = model.reconstruct_past(z, c)[:, 0]  # (7, A, 2)
-    observed = torch.cat([torch.zeros(1, count, 2), past.cumsum(0)])  # (8, A, 2)
+    observed = torch.cat([past.new_zeros(1, count, 2), past.cumsum(0)])  # (8, A, 2)
     frames = torch.cat([observed, observed[-1:].expand(12, count, 2)])  # the future is unused
-    inputs = Windows(frames.transpose(0, 1).numpy().copy(), np.arange(count + 1))
-    batch = make_batch(inputs)
+    inputs = Windows(frames.transpose(0, 1).cpu().numpy().copy(), np.arange(count + 1))
+    batch = make_batch(inputs, device=device)
     post = model.posteriors(batch)
     cond = model.conditions(batch, post, z, c)  # single-agent scenes: per scene is per agent
     future = model.backbone.decode(cond, past[-1])[:, 0]
@@ -494,7 +498,8 @@ class ConstantVelocity(nn.Module):
 
     @torch.no_grad()
     def predict(self, batch: Batch, samples: int) -> torch.Tensor:
-        steps = torch.arange(1, batch.fut.shape[0] + 1, dtype=batch.obs.dtype)[:, None, None]
+        steps = torch.arange(1, len(batch.fut) + 1, dtype=batch.obs.dtype, device=batch.obs.device)
+        steps = steps[:, None, None]
         future = batch.obs[-1] + steps * batch.obs_rel[-1]
         return future.expand(samples, *future.shape)
 

@@ -71,12 +71,12 @@ class GaussianMixture:
 
     def sample(self, n: int, generator: torch.Generator | None = None) -> torch.Tensor:
         k = torch.multinomial(self.weights, n, replacement=True, generator=generator)
-        noise = torch.randn(n, self.means.shape[1], generator=generator)
+        noise = torch.randn(n, self.means.shape[1], generator=generator, device=self.means.device)
         return gaussian_sample(self.means[k], self.logvars[k], noise)
 
     def without(self, index: int) -> GaussianMixture:
         """The mixture with component ``index`` removed and the weights renormalised."""
-        keep = torch.arange(len(self)) != index
+        keep = torch.arange(len(self), device=self.weights.device) != index
         weights = self.weights[keep]
         return GaussianMixture(self.means[keep], self.logvars[keep], weights / weights.sum())
 
@@ -91,7 +91,7 @@ class GaussianMixture:
         """R_div: the mean symmetric KL over all pairs of components (0 with one component)."""
         k = len(self)
         if k < 2:
-            return torch.zeros(())
+            return self.means.new_zeros(())
         skl = symmetric_kl(
             self.means[:, None], self.logvars[:, None], self.means[None], self.logvars[None]
         )
@@ -168,7 +168,7 @@ def bounded_task_mass(weights: torch.Tensor, owners: list[int], rounds: int = 50
     weights inside a task as Eq 9 set them. Clip, renormalise, repeat: the bounds hold at the
     fixed point, which a few rounds reach.
     """
-    owner = torch.tensor(owners)
+    owner = torch.tensor(owners, device=weights.device)
     tasks = owner.unique()
     tasks = tasks[tasks >= 0]
     t = len(tasks)
@@ -177,7 +177,7 @@ def bounded_task_mass(weights: torch.Tensor, owners: list[int], rounds: int = 50
     index = torch.searchsorted(tasks, owner.clamp_min(0))
     weights = weights.clone()
     for _ in range(rounds):
-        mass = torch.zeros(t, dtype=weights.dtype).index_add(0, index, weights)
+        mass = weights.new_zeros(t).index_add(0, index, weights)
         bounded = mass.clamp(0.5 / t, 2 / t)
         bounded = bounded / bounded.sum()
         if torch.allclose(bounded, mass, atol=1e-6):
@@ -207,7 +207,7 @@ class PriorQueue:
 
     def task_mixture(self, owner: int) -> GaussianMixture:
         """The components added by task ``owner``, with their weights renormalised."""
-        keep = torch.tensor([o == owner for o in self.owners])
+        keep = torch.tensor([o == owner for o in self.owners], device=self.mixture.weights.device)
         if not keep.any():
             raise ValueError(f"no component of task {owner} in the queue")
         m = self.mixture
@@ -223,16 +223,16 @@ class PriorQueue:
 
     def reset(self, mean: torch.Tensor, logvar: torch.Tensor, owner: int = 0) -> None:
         """Start the queue with one component (the first task's initial prior)."""
-        self.mixture = GaussianMixture(mean[None].detach(), logvar[None].detach(), torch.ones(1))
+        self.mixture = GaussianMixture(mean[None].detach(), logvar[None].detach(), mean.new_ones(1))
         self.owners = [owner]
 
     def add(self, mean: torch.Tensor, logvar: torch.Tensor, new_weight: float, owner: int) -> None:
         """Append a component with weight ``new_weight``; the old ones keep 1 - new_weight
         (then each task's share is bounded, with ``mass_bounds``)."""
         m = self.mixture
-        weights = torch.cat([(1 - new_weight) * m.weights, torch.tensor([new_weight])])
+        weights = torch.cat([(1 - new_weight) * m.weights, m.weights.new_full((1,), new_weight)])
         if not self.config.weight_opt:
-            weights = torch.full((len(weights),), 1 / len(weights))
+            weights = torch.full_like(weights, 1 / len(weights))
         self.mixture = GaussianMixture(
             torch.cat([m.means, mean[None].detach()]),
             torch.cat([m.logvars, logvar[None].detach()]),
@@ -273,7 +273,7 @@ class PriorQueue:
         logvar = start[1].clone().requires_grad_(True)
         optimiser = torch.optim.Adam([mean, logvar], lr=cfg.fit_lr)
         for _ in range(cfg.fit_steps if steps is None else steps):
-            noise = torch.randn(cfg.fit_samples, self.dim, generator=generator)
+            noise = torch.randn(cfg.fit_samples, self.dim, generator=generator, device=mean.device)
             c = gaussian_sample(mean, logvar, noise)
             entropy = 0.5 * (1 + LOG_2PI + logvar).sum()
             log_t, log_m = target.log_prob(c), current.log_prob(c)
@@ -352,7 +352,7 @@ class PriorQueue:
 
     def state_dict(self) -> dict[str, torch.Tensor]:
         m = self.mixture
-        owners = torch.tensor(self.owners)
+        owners = torch.tensor(self.owners, device=m.weights.device)
         return {"means": m.means, "logvars": m.logvars, "weights": m.weights, "owners": owners}
 
     def load_state_dict(self, state: dict[str, torch.Tensor]) -> None:
@@ -385,7 +385,7 @@ class LearnablePrior(torch.nn.Module):
 
     @property
     def mixture(self) -> GaussianMixture:
-        logits = torch.cat([torch.zeros(len(self.frozen)), self.logits])
+        logits = torch.cat([self.logits.new_zeros(len(self.frozen)), self.logits])
         return GaussianMixture(
             torch.cat([self.frozen.means, self.means]),
             torch.cat([self.frozen.logvars, self.logvars.clamp(-8, 4)]),
@@ -407,7 +407,7 @@ class LearnablePrior(torch.nn.Module):
         ``next_owner`` from where they are."""
         means = torch.cat([self.frozen.means, self.means.detach().clone()])
         logvars = torch.cat([self.frozen.logvars, self.logvars.detach().clamp(-8, 4)])
-        self.frozen = GaussianMixture(means, logvars, torch.full((len(means),), 1 / len(means)))
+        self.frozen = GaussianMixture(means, logvars, means.new_full((len(means),), 1 / len(means)))
         self.frozen_owners += [self.owner] * len(self.means)
         self.owner = next_owner
 
@@ -418,7 +418,7 @@ class LearnablePrior(torch.nn.Module):
             "means": f.means,
             "logvars": f.logvars,
             "weights": f.weights,
-            "owners": torch.tensor(self.frozen_owners, dtype=torch.int64),
+            "owners": torch.tensor(self.frozen_owners, dtype=torch.int64, device=f.weights.device),
             "owner": self.owner,
         }
 

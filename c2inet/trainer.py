@@ -20,6 +20,7 @@ import torch
 
 from c2inet.batch import batches
 from c2inet.data import Windows
+from c2inet.device import check_device_name, cuda_rng_state, model_device, resolve_device, seeded
 from c2inet.diagnostics import diagnose
 from c2inet.errors import InputError
 from c2inet.files import file_digest, write_atomic, write_text_atomic
@@ -58,8 +59,10 @@ class TrainConfig:
     val_every: int = 1  # epochs between validation curves (0: never)
     diagnostics: bool = True  # measure the confounder's diagnostics after each task
     test_rules: bool = True  # also score the latent models' other test-time rules for C
+    device: str = "cpu"  # auto, cpu, cuda, cuda:N or mps (c2inet.device)
 
     def __post_init__(self):
+        check_device_name(self.device)
         require(self, 0, "epochs", "seed", "val_every")
         require(self, 1, "batch_scenes", "k", "k_train", "eval_batch_scenes")
         require(self, 0, "lr", high=10, open_low=True)
@@ -100,10 +103,11 @@ def sample_predictions(
     """
     was_training = getattr(model, "training", False)
     model.eval()
-    with torch.random.fork_rng(devices=[]):
-        torch.manual_seed(seed)
+    device = model_device(model)
+    with seeded(seed, device):
         preds = [
-            model.predict(batch, k, **options).numpy() for batch in batches(windows, batch_scenes)
+            model.predict(batch, k, **options).cpu().numpy()
+            for batch in batches(windows, batch_scenes, device=device)
         ]
     model.train(was_training)
     return np.concatenate(preds, axis=2)
@@ -156,12 +160,13 @@ def evaluate_all(
 
 
 def start_training(method: Method, cfg: TrainConfig):
-    """A fresh model, its optimiser (None for a method that does not train) and the run's
-    random generator, seeded from ``cfg.seed`` in a fixed order: every run of a seed starts
-    alike."""
+    """A fresh model on ``cfg.device``, its optimiser (None for a method that does not train)
+    and the run's random generator, seeded from ``cfg.seed`` in a fixed order: every run of a
+    seed starts alike."""
     torch.manual_seed(cfg.seed)
     rng = _generator(cfg.seed, method.name)
-    model = method.build_model()
+    with torch.device(resolve_device(cfg.device)):
+        model = method.build_model()
     optimiser = torch.optim.Adam(model.parameters(), lr=cfg.lr) if method.trains else None
     return model, optimiser, rng
 
@@ -171,7 +176,7 @@ def train_epoch(method: Method, ctx: TaskContext, data: Windows, cfg: TrainConfi
     of each loss part over the steps."""
     totals: dict[str, float] = {}
     steps = 0
-    for batch in batches(data, cfg.batch_scenes, ctx.rng):
+    for batch in batches(data, cfg.batch_scenes, ctx.rng, ctx.device):
         ctx.batch = batch
         ctx.loss, ctx.parts, ctx.output = ctx.model.loss(batch, cfg.k_train)
         method.before_backward(ctx)
@@ -319,7 +324,7 @@ class ContinualTrainer:
         """
         paths = self.checkpoints()
         for path in paths:
-            state = load_checkpoint(path)
+            state = load_checkpoint(path, model_device(model))
             try:
                 model.load_state_dict(state["model"])
                 self.method.load_state_dict(state["method"], model)
@@ -329,7 +334,7 @@ class ContinualTrainer:
                     f"({type(error).__name__}); delete it to retrain, or use --overwrite"
                 ) from None
             i = state["task"]
-            result.matrices = {m: v.numpy().copy() for m, v in state["matrices"].items()}
+            result.matrices = {m: v.cpu().numpy().copy() for m, v in state["matrices"].items()}
             result.summaries, result.diagnostics = state["summaries"], state["diagnostics"]
             for record in state["history"]:
                 if record["task"] == i:
@@ -339,7 +344,9 @@ class ContinualTrainer:
         if paths:
             if optimiser is not None:
                 optimiser.load_state_dict(state["optimiser"])
-            torch.set_rng_state(state["torch_rng"])
+            torch.set_rng_state(state["torch_rng"].cpu())
+            if state.get("cuda_rng") is not None:
+                torch.cuda.set_rng_state(state["cuda_rng"].cpu(), model_device(model))
             rng.bit_generator.state = state["numpy_rng"]
         return len(paths)
 
@@ -373,6 +380,7 @@ class ContinualTrainer:
             "optimiser": None if optimiser is None else optimiser.state_dict(),
             "method": self.method.state_dict(model),
             "torch_rng": torch.get_rng_state(),
+            "cuda_rng": cuda_rng_state(model_device(model)),
             "numpy_rng": rng.bit_generator.state,
             "matrices": {m: torch.from_numpy(v.copy()) for m, v in result.matrices.items()},
             "summaries": list(result.summaries),
@@ -392,11 +400,11 @@ MANIFEST = "manifest.json"  # beside the checkpoints: the job's identity and the
 CHECKPOINT_KEYS = {"task", "model", "optimiser", "method", "torch_rng", "numpy_rng", "matrices"}
 
 
-def load_checkpoint(path: Path) -> dict[str, Any]:
-    """Read a task checkpoint safely (tensors and plain values only); a damaged or foreign one
-    is one :class:`InputError` naming it and the way out."""
+def load_checkpoint(path: Path, device: torch.device | str = "cpu") -> dict[str, Any]:
+    """Read a task checkpoint safely (tensors and plain values only) onto ``device``; a damaged
+    or foreign one is one :class:`InputError` naming it and the way out."""
     try:
-        state = torch.load(path, weights_only=True)
+        state = torch.load(path, weights_only=True, map_location=device)
         missing = CHECKPOINT_KEYS - set(state)
     except Exception as error:  # torch raises many kinds for a damaged file
         raise InputError(

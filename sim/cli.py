@@ -128,6 +128,7 @@ def parse(
 SAME_NAME = (
     *("scenario", "methods", "seed", "seeds", "epochs", "k", "backbone", "quick", "scenarios_dir"),
     *("jobs", "backend", "threads", "workers", "cache", "rerun", "memory_budget", "ray_address"),
+    "device",
 )
 # a configuration file's key -> the option (argparse dest) that takes it
 CONFIG_KEYS = {**{name: name for name in SAME_NAME}, "record": "no_record", "loggers": "logger"}
@@ -256,6 +257,11 @@ def add_experiment_options(
     )
     add_workers(p)
     add_threads(p)
+    p.add_argument(
+        "--device",
+        default="cpu",
+        help="where models train: cpu (default), cuda, cuda:N, mps, or auto (a GPU if any)",
+    )
     p.add_argument("--resume", action="store_true", help="continue the run in --out (or latest)")
     p.add_argument("--backend", choices=BACKENDS, default="local", help="where jobs run")
     p.add_argument(
@@ -294,6 +300,7 @@ def experiment_options(args: argparse.Namespace, grid: bool = False) -> dict:
         "scenarios_dir": tuple(args.scenarios_dir),
         "settings": settings,
         "record": not getattr(args, "no_record", True),
+        "device": args.device,
     }
 
 

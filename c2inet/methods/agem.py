@@ -71,7 +71,7 @@ class AGEM(Coresets):
         memory = Windows.concat(self.buffer)
         scenes = ctx.rng.choice(len(memory), min(self.options.memory_batch, len(memory)), False)
         ctx.model.zero_grad()
-        ctx.model.loss(make_batch(memory, scenes), ctx.output.shape[1]).loss.backward()
+        ctx.model.loss(make_batch(memory, scenes, ctx.device), ctx.output.shape[1]).loss.backward()
         step, projected = project(step, gradient(parameters))
         self.projected += projected
         for p, g in zip(parameters, step.split([p.numel() for p in parameters]), strict=True):

@@ -24,6 +24,7 @@ import torch
 
 from c2inet.batch import Batch
 from c2inet.data import Windows
+from c2inet.device import model_device
 from c2inet.errors import did_you_mean
 from c2inet.model import ModelConfig, Predictor
 from c2inet.options import Tunable, build
@@ -47,6 +48,11 @@ class TaskContext:
     output: torch.Tensor | None = None  # its predicted normalised displacements (12, S, N, 2)
     loss: torch.Tensor | None = None  # the step's loss so far
     parts: dict[str, float] = field(default_factory=dict)  # the loss's parts, for the logs
+
+    @property
+    def device(self) -> torch.device:
+        """The model's device: every tensor a hook makes belongs there."""
+        return model_device(self.model)
 
     def add_loss(self, name: str, value: torch.Tensor) -> None:
         """Add a penalty to the step's loss, logged as ``name``."""

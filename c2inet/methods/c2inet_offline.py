@@ -52,13 +52,13 @@ class C2INetOffline(C2INetOnline):
         from sklearn.cluster import KMeans  # here: scikit-learn is slow to import
 
         mean, logvar = self._current_posterior(ctx)
-        points = mean.numpy().astype(np.float64)
+        points = mean.cpu().numpy().astype(np.float64)
         k = min(self.options.clusters, len(np.unique(points, axis=0)))
         if centres is not None and len(centres) == k:
             kmeans = KMeans(k, init=centres, n_init=1).fit(points)
         else:
             kmeans = KMeans(k, n_init=1, random_state=int(ctx.rng.integers(2**31))).fit(points)
-        labels = torch.from_numpy(kmeans.labels_)
+        labels = torch.as_tensor(kmeans.labels_, device=mean.device)
         means, logvars, sizes = [], [], []
         for j in range(k):
             member = labels == j
@@ -67,7 +67,7 @@ class C2INetOffline(C2INetOnline):
             means.append(centre)
             logvars.append(spread.clamp_min(1e-6).log())
             sizes.append(float(member.sum()))
-        self._enqueue(ctx, torch.stack(means), torch.stack(logvars), torch.tensor(sizes))
+        self._enqueue(ctx, torch.stack(means), torch.stack(logvars), mean.new_tensor(sizes))
 
     def _enqueue(self, ctx, means: torch.Tensor, logvars: torch.Tensor, sizes: torch.Tensor):
         """Replace the task's components: earlier tasks keep (t-1)/t of the mass, these 1/t."""
@@ -96,7 +96,7 @@ class C2INetOffline(C2INetOnline):
         queue = ctx.model.queue
         mine = [i for i, owner in enumerate(queue.owners) if owner == ctx.index]
         if self.options.refine == "kmeans":
-            self._cluster(ctx, queue.mixture.means[mine].numpy().astype(np.float64))
+            self._cluster(ctx, queue.mixture.means[mine].cpu().numpy().astype(np.float64))
             return
         target = self._target(ctx, *self._current_posterior(ctx))
         steps = max(1, self.options.fit_steps // len(mine))
@@ -110,7 +110,8 @@ class C2INetOffline(C2INetOnline):
                 new = 1.0
             elif self.queue_config.weight_opt:
                 new = queue.fit_weight(mean, logvar, target, current=rest)
-            weights = torch.cat([rest.weights[:k], torch.zeros(1), rest.weights[k:]]) * (1 - new)
+            weights = torch.cat([rest.weights[:k], rest.weights.new_zeros(1), rest.weights[k:]])
+            weights = weights * (1 - new)
             weights[k] = new
             means, logvars = m.means.clone(), m.logvars.clone()
             means[k], logvars[k] = mean, logvar

@@ -71,7 +71,7 @@ class C2INetOnline(Method):
 
         A C per scene is repeated per agent: scenes weigh by their agents, as S counts agents.
         """
-        batch = make_batch(ctx.train, self.sample_scenes)
+        batch = make_batch(ctx.train, self.sample_scenes, ctx.device)
         with torch.no_grad():
             post = ctx.model.posteriors(batch)
         mean, logvar = post.c_mean, post.c_logvar
@@ -85,7 +85,7 @@ class C2INetOnline(Method):
         """T = (t-1)/t * M_old + 1/t * Q_cur, with Q_cur from the first TARGET_COMPONENTS
         posteriors (the same density at a fraction of the cost)."""
         mean, logvar = mean[:TARGET_COMPONENTS], logvar[:TARGET_COMPONENTS]
-        current = GaussianMixture(mean, logvar, torch.full((len(mean),), 1 / len(mean)))
+        current = GaussianMixture(mean, logvar, mean.new_full((len(mean),), 1 / len(mean)))
         t = ctx.index + 1
         return current if t == 1 else mix([self.old, current], [(t - 1) / t, 1 / t])
 

@@ -58,7 +58,8 @@ class DERPP(Method):
         chosen = ctx.rng.choice(len(self.scenes), count, replace=False)
         parts = [self.scenes[i] for i in chosen]
         starts = np.cumsum([0] + [len(p) for p in parts])
-        batch = make_batch(Windows(torch.cat(parts).numpy(), starts, ctx.train.obs_len))
+        windows = Windows(torch.cat(parts).cpu().numpy(), starts, ctx.train.obs_len)
+        batch = make_batch(windows, device=ctx.device)
         stored = torch.cat([self.outputs[i] for i in chosen], dim=1)
         drift = ((ctx.model.point(batch) - stored) ** 2).sum(dim=(0, 2))
         drift = batch.per_scene_mean(drift).mean() / (2 * self.model_config.likelihood_std**2)

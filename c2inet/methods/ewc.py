@@ -12,6 +12,7 @@ from typing import Any
 import torch
 
 from c2inet.batch import batches
+from c2inet.device import model_device
 from c2inet.methods.base import Method, TaskContext
 from c2inet.options import Tunable, require
 
@@ -42,7 +43,7 @@ class EWC(Method):
         self.anchor: dict[str, torch.Tensor] = {}
 
     def penalty(self, model: torch.nn.Module) -> torch.Tensor:
-        total = torch.zeros(())
+        total = torch.zeros((), device=model_device(model))
         for name, p in model.named_parameters():
             if name in self.fisher:
                 total = total + (self.fisher[name] * (p - self.anchor[name]) ** 2).sum()
@@ -56,7 +57,7 @@ class EWC(Method):
         model = ctx.model
         fisher = {n: torch.zeros_like(p) for n, p in model.named_parameters()}
         count = 0
-        for batch in batches(ctx.train, self.options.fisher_batch_scenes, ctx.rng):
+        for batch in batches(ctx.train, self.options.fisher_batch_scenes, ctx.rng, ctx.device):
             model.zero_grad()
             model.loss(batch).loss.backward()
             for n, p in model.named_parameters():

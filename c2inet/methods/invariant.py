@@ -57,12 +57,14 @@ class Invariant(Method):
 
     def __init__(self, model_config, options: dict[str, Any] | None = None):
         super().__init__(model_config, options)
-        self.edges = torch.zeros(0)
+        self.edges: torch.Tensor | None = None  # set by each task
 
     def before_task(self, ctx: TaskContext) -> None:
-        scales = scene_scales(make_batch(ctx.train)).numpy()
+        scales = scene_scales(make_batch(ctx.train, device=ctx.device)).cpu().numpy()
         cuts = np.arange(1, self.options.environments) / self.options.environments
-        self.edges = torch.from_numpy(np.quantile(scales, cuts)).float()
+        self.edges = torch.as_tensor(
+            np.quantile(scales, cuts), dtype=torch.float32, device=ctx.device
+        )
 
     def risks(self, ctx: TaskContext, scale: torch.Tensor) -> list[torch.Tensor]:
         """The variety loss of each environment present in the batch, the output scaled."""
@@ -73,13 +75,13 @@ class Invariant(Method):
 
     def before_backward(self, ctx: TaskContext) -> None:
         if self.options.risk == "irm":
-            dummy = torch.ones((), requires_grad=True)
+            dummy = torch.ones((), requires_grad=True, device=ctx.device)
             grads = [
                 torch.autograd.grad(r, dummy, create_graph=True)[0] for r in self.risks(ctx, dummy)
             ]
             penalty = torch.stack(grads).pow(2).sum()
         else:
-            risks = torch.stack(self.risks(ctx, torch.ones(())))
+            risks = torch.stack(self.risks(ctx, torch.ones((), device=ctx.device)))
             penalty = risks.var(unbiased=False)
         # Liu et al.'s risk is a squared error; ours is that over 2 sigma^2, so their
         # risk + weight * penalty is, in our units, loss + weight * 2 sigma^2 * penalty

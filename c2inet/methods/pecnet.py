@@ -65,7 +65,7 @@ class EndpointCVAE(Predictor):
         context = self.context(batch)
         end = (batch.fut[-1] - batch.obs[-1]) / batch.scale
         mean, logvar = self.to_z(torch.cat([context, self.encode_end(end)], -1))
-        z = gaussian_sample(mean, logvar, torch.randn(k_train, *mean.shape))
+        z = gaussian_sample(mean, logvar, torch.randn(k_train, *mean.shape, device=mean.device))
         pred = self.future(context, z)
         # PECNet's plain squared errors (in units of the scene's step), not a likelihood
         path_error = self.nll(batch, pred) * 2 * self.config.likelihood_std**2
@@ -77,7 +77,8 @@ class EndpointCVAE(Predictor):
     @torch.no_grad()
     def predict(self, batch: Batch, samples: int) -> torch.Tensor:
         context = self.context(batch)
-        z = self.options.sigma * torch.randn(samples, len(context), self.options.latent)
+        noise = torch.randn(samples, len(context), self.options.latent, device=context.device)
+        z = self.options.sigma * noise
         return to_positions(batch, self.future(context, z))
 
     def point(self, batch: Batch) -> torch.Tensor:

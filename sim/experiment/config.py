@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from c2inet.backbones import BACKBONES
+from c2inet.device import resolve_device
 from c2inet.errors import InputError, did_you_mean
 from c2inet.methods.base import get_method
 from c2inet.model import ModelConfig
@@ -26,7 +27,10 @@ from viz.loggers import LOGGERS
 
 DEFAULT_METHODS = ("c2inet-online", "finetune", "cv")
 # options that have a flag of their own: a --set of them would be silently overridden
-FLAG_OPTIONS = (("train", "epochs"), ("train", "k"), ("train", "seed"), ("model", "backbone"))
+FLAG_OPTIONS = (
+    *(("train", "epochs"), ("train", "k"), ("train", "seed"), ("train", "device")),
+    ("model", "backbone"),
+)
 
 
 @dataclass(frozen=True)
@@ -49,6 +53,7 @@ class ExperimentConfig:
     settings: dict[str, dict[str, Any]] = field(default_factory=dict)
     scenarios_dir: tuple[Path, ...] = ()
     record: bool = True
+    device: str = "cpu"  # where the models train: auto, cpu, cuda, cuda:N or mps
 
     def __post_init__(self):
         fill = object.__setattr__  # the resolved defaults belong to the frozen configuration
@@ -67,6 +72,7 @@ class ExperimentConfig:
                 get_method(name)
             except KeyError as error:
                 raise InputError(f"methods: {error.args[0]}") from None
+        resolve_device(self.device)  # a device this machine lacks fails before any work
         if self.backbone not in BACKBONES:
             raise InputError(f"backbone {self.backbone!r}: expected one of {sorted(BACKBONES)}")
         for scope in self.settings:
@@ -108,6 +114,7 @@ class ExperimentConfig:
     def train_config(self, seed_index: int = 0) -> TrainConfig:
         """The trainer's options of the job with seed ``seed_index`` (its own seed)."""
         train = {**self.settings.get("train", {}), "epochs": self.epochs, "k": self.k}
+        train["device"] = self.device
         return build(TrainConfig, {**train, "seed": self.seed + seed_index}, "train")
 
     def method(self, name: str):

@@ -15,8 +15,9 @@ from collections.abc import Callable
 import torch
 
 from c2inet.batch import batches
+from c2inet.device import model_device
 from c2inet.diagnostics import diagnose
-from c2inet.trainer import Task, evaluate, evaluate_all
+from c2inet.trainer import Task, evaluate, evaluate_all, start_training
 
 STEPS = 3  # timed training steps per method, after one to warm up
 
@@ -33,11 +34,10 @@ def method_seconds(config, name: str, tasks: list[Task]) -> float:
     method, train = config.method(name), config.train_config()
     n, first = len(tasks), tasks[0]
     with torch.random.fork_rng(devices=[]):
-        model = method.build_model()
+        model, optimiser, _ = start_training(method, train)
         total = 0.0
         if method.trains:
-            optimiser = torch.optim.Adam(model.parameters(), lr=train.lr)
-            batch = next(batches(first.train, train.batch_scenes))
+            batch = next(batches(first.train, train.batch_scenes, device=model_device(model)))
 
             def step() -> None:
                 loss = model.loss(batch, train.k_train).loss

@@ -9,6 +9,7 @@ import random
 from importlib.metadata import EntryPoint
 
 import pytest
+import torch
 
 from c2inet.checker import MethodCheckError, check_method
 from c2inet.methods import base
@@ -65,6 +66,16 @@ class Noisy(Finetune, register=False):
         ctx.add_loss("noise", 1e-3 * random.SystemRandom().random() * ctx.loss)
 
 
+class DeviceBound(Finetune, register=False):
+    """Fine-tuning with a penalty made on the default device, not the model's: on a GPU it fails
+    (a CPU tensor added to a GPU loss), so the checker must catch it on the CPU too."""
+
+    name = "test-device-bound"
+
+    def before_backward(self, ctx):
+        ctx.add_loss("penalty", torch.zeros(()))
+
+
 class Undocumented(EWC, register=False):
     """EWC with an extra hook its module's docstring does not name."""
 
@@ -96,6 +107,7 @@ class Misspelt(EWC, register=False):
         (InertLwF, "inert"),
         (Forgetful, "resumed after task"),
         (Noisy, "same seed"),
+        (DeviceBound, r"without naming a device at .*test_methods.py:\d+"),
         (Undocumented, "after_step"),
     ],
 )

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
+import torch
 
 from sim.run import main
 
@@ -82,7 +83,9 @@ def test_quick_run_writes_every_output(tmp_path):
     assert rows[0] == ["after", *metrics["tasks"]] and len(rows) == 4
     card = json.loads((out / "run_card.json").read_text())
     assert card["versions"]["torch"].startswith("2.13") and len(card["domains"]) == 3
-    assert card["threads"] == 1 and card["train"]["k_train"] == 5
+    assert (
+        card["threads"] == 1 and card["train"]["k_train"] == 5 and card["train"]["device"] == "cpu"
+    )
     assert all(d["hash"] for d in card["domains"])
     assert (out / "report.md").read_text().startswith("# Continual run")
     assert card["command"].startswith("python -m sim.run --scenario crowd_noise_0.1..0.3")
@@ -185,12 +188,22 @@ def test_seeds_give_mean_and_std(tmp_path):
         (["--scenario", "crowd_noise_0.1", "--set", "train.lr=nan"], "'lr' must be finite"),
         (["--scenario", "crowd_noise_0.1", "--set", "model.n_mc=1.5"], "must be an integer"),
         (["--scenario", "crowd_noise_0.1", "--set", "train.epochs=3"], "use --epochs"),
+        (["--scenario", "crowd_noise_0.1", "--set", "train.device=cpu"], "use --device"),
+        (["--scenario", "crowd_noise_0.1", "--device", "gpu"], "'gpu' is none of auto, cpu"),
         (["--scenario", "crowd_noise_0.1", "--seed", "-1"], "--seed: -1 is not between 0 and"),
     ],
 )
 def test_bad_options_give_one_error_line(capsys, args, message):
     lines = refused(capsys, *args)
     assert len(lines) == 1 and lines[0].startswith("error:") and message in lines[0]
+
+
+@pytest.mark.skipif(torch.cuda.is_available(), reason="this machine has a CUDA device")
+def test_a_device_this_machine_lacks_is_refused_before_any_work(capsys, tmp_path):
+    out = tmp_path / "run"
+    lines = refused(capsys, "--scenario", "crowd_noise_0.1", "--device", "cuda", "--out", str(out))
+    assert lines == ["error: device 'cuda': this machine has no CUDA device (try auto or cpu)"]
+    assert not out.exists()
 
 
 def test_list_shows_families_methods_and_knobs(capsys):
