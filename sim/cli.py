@@ -278,7 +278,8 @@ def add_experiment_options(
             "--logger",
             default="",
             help="also log every job's curves: csv, tensorboard, mlflow (the run's own "
-            "mlflow.db store) or mlflow=URI (a tracking server); comma-separated",
+            "mlflow.db store), mlflow=URI (a tracking server), wandb (offline, in each job's "
+            "folder) or wandb=online; comma-separated",
         )
 
 

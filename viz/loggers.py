@@ -1,9 +1,9 @@
 """Loggers on the trainer's observer hook: what a job measures, as a CSV file, TensorBoard
-events or an MLflow run, beside the recording.
+events, an MLflow run or a W&B run, beside the recording.
 
 All log the same numbers at the same global step (task * epochs + epoch): per epoch the
 training losses and the validation ADE of every seen task, per task the error-matrix row and the
-diagnostics (lists averaged over the tasks seen); TensorBoard and MLflow also the job's
+diagnostics (lists averaged over the tasks seen); TensorBoard, MLflow and W&B also the job's
 configuration as hyper-parameters. A resumed job replays its finished tasks' events, so each
 logger starts its output afresh and ends up complete.
 """
@@ -13,6 +13,7 @@ from __future__ import annotations
 import csv
 import logging
 import os
+import re
 import shutil
 import time
 from collections.abc import Iterator
@@ -23,7 +24,9 @@ import numpy as np
 
 from c2inet.errors import InputError
 
-LOGGERS = ("csv", "tensorboard", "mlflow")  # mlflow=URI: a tracking server, not the local store
+# mlflow=URI: a tracking server, not the run's own store; wandb=online: W&B's server, not offline
+LOGGERS = ("csv", "tensorboard", "mlflow", "wandb")
+WANDB_MODES = ("offline", "online")
 ROW_METRICS = ("ade", "fde", "ade_k1", "fde_k1", "ade_draw", "fde_draw")
 
 
@@ -174,6 +177,53 @@ class MLflowLogger:
         self.client.set_terminated(self.run_id)
 
 
+class WandbLogger:
+    """A W&B run per job, offline by default (``wandb/`` in the job's folder, no account needed;
+    ``wandb sync`` uploads it later) or online with ``wandb=online`` and a login: the project is
+    the run folder's parent (the scenario, for default folders), the group the run folder, the
+    name the job; the configuration as the run's config, every number at its step."""
+
+    def __init__(self, folder: Path, epochs: int, tasks: list[str], run_folder=None, **options):
+        try:
+            import wandb
+        except ImportError:
+            raise InputError(
+                "--logger wandb: W&B is not installed (pip install '.[wandb]')"
+            ) from None
+        run_folder = Path(run_folder or folder).resolve()
+        self.epochs, self.tasks = epochs, tasks
+        shutil.rmtree(folder / "wandb", ignore_errors=True)  # a resumed job logs everything again
+        (folder / "wandb").mkdir(parents=True)
+        settings = wandb.Settings(
+            mode=options.get("uri") or "offline",
+            silent=True,
+            console="off",  # the job's own output stays the job's
+            x_disable_stats=True,  # no system metrics sampled beside training
+            x_disable_meta=True,
+            save_code=False,
+            disable_git=True,
+        )
+        self.run = wandb.init(
+            dir=folder,
+            project=re.sub(r"[/\\#?%:]", "_", run_folder.parent.name)[:128],
+            group=run_folder.name,
+            name=folder.resolve().relative_to(run_folder).as_posix(),
+            config=options.get("params") or {},
+            settings=settings,
+            reinit="create_new",
+        )
+
+    def __call__(self, event: str, data: dict[str, Any]) -> None:
+        steps: dict[int, dict[str, float]] = {}
+        for step, name, value in scalars(event, data, self.epochs, self.tasks):
+            steps.setdefault(step, {})[name] = value
+        for step, values in sorted(steps.items()):
+            self.run.log(values, step=step)
+
+    def close(self) -> None:
+        self.run.finish()
+
+
 def _param(key: str, value: Any):
     from mlflow.entities import Param
 
@@ -198,6 +248,7 @@ def make_loggers(
 ) -> list:
     """The loggers ``specs`` name, for the job in ``folder`` of the run in ``run_folder``."""
     kinds = {"csv": CSVLogger, "tensorboard": TensorBoardLogger, "mlflow": MLflowLogger}
+    kinds["wandb"] = WandbLogger
     loggers = []
     for spec in specs:
         name, _, uri = spec.partition("=")

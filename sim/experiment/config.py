@@ -23,7 +23,7 @@ from c2inet.trainer import TrainConfig
 from sim.experiment.backends import BACKENDS, check_ray_address
 from sim.scenario import DomainSpec, parse_scenario
 from viz.live import viewer_url
-from viz.loggers import LOGGERS
+from viz.loggers import LOGGERS, WANDB_MODES
 
 DEFAULT_METHODS = ("c2inet-online", "finetune", "cv")
 # options that have a flag of their own: a --set of them would be silently overridden
@@ -143,7 +143,7 @@ class Execution:
     workers: int = os.cpu_count() or 1
     cache: Path = Path(".cache/domains")
     rerun: str | None = None
-    loggers: tuple[str, ...] = ()  # csv, tensorboard, mlflow[=URI]: per job
+    loggers: tuple[str, ...] = ()  # csv, tensorboard, mlflow[=URI], wandb[=online]: per job
     memory_budget: float | None = None  # GB one domain's generation may take (None: no limit)
 
     def __post_init__(self):
@@ -154,8 +154,12 @@ class Execution:
             if name not in LOGGERS:
                 hint = did_you_mean(name, LOGGERS)
                 raise InputError(f"--logger {name!r}: unknown{hint} (known: {', '.join(LOGGERS)})")
-            if equals and (name != "mlflow" or not uri):
-                raise InputError(f"--logger {spec[:80]!r}: only mlflow=URI takes a value")
+            if name == "wandb" and equals and uri not in WANDB_MODES:
+                raise InputError(f"--logger {spec[:80]!r}: W&B's mode is offline or online")
+            if equals and name not in ("mlflow", "wandb") or equals and not uri:
+                raise InputError(
+                    f"--logger {spec[:80]!r}: only mlflow=URI and wandb=online take a value"
+                )
         if self.backend not in BACKENDS:
             raise InputError(f"--backend {self.backend!r}: expected one of {', '.join(BACKENDS)}")
         if self.rerun is not None and self.rerun != "spawn":

@@ -4,6 +4,7 @@ import csv
 import json
 import math
 import shutil
+import struct
 import subprocess
 import sys
 from pathlib import Path
@@ -190,6 +191,8 @@ def test_seeds_give_mean_and_std(tmp_path):
         (["--scenario", "crowd_noise_0.1", "--set", "train.epochs=3"], "use --epochs"),
         (["--scenario", "crowd_noise_0.1", "--set", "train.device=cpu"], "use --device"),
         (["--scenario", "crowd_noise_0.1", "--device", "gpu"], "'gpu' is none of auto, cpu"),
+        (["--scenario", "crowd_noise_0.1", "--logger", "wandb=cloud"], "offline or online"),
+        (["--scenario", "crowd_noise_0.1", "--logger", "csv=x"], "only mlflow=URI and wandb"),
         (["--scenario", "crowd_noise_0.1", "--seed", "-1"], "--seed: -1 is not between 0 and"),
     ],
 )
@@ -267,7 +270,7 @@ def test_knob_overrides_reach_the_domains_and_the_run_card(tmp_path):
 def test_loggers_write_the_numbers_of_metrics_json(tmp_path):
     out = tmp_path / "run"
     args = ["--scenario", "crowd_noise_0.1,0.2", "--quick", "--methods", "finetune", "--no-record"]
-    loggers = "csv,tensorboard,mlflow"
+    loggers = "csv,tensorboard,mlflow,wandb"
     done = run(*args, "--logger", loggers, "--set", "train.lr=0.002", "--out", str(out))
     assert done.returncode == 0, done.stderr
     metrics = json.loads((out / "metrics.json").read_text())["methods"]["finetune"]
@@ -297,6 +300,46 @@ def test_loggers_write_the_numbers_of_metrics_json(tmp_path):
     assert [(m.step, m.value) for m in history if m.step == 3] == [
         (3, pytest.approx(metrics["ade"][1][0], rel=1e-6))
     ]
+    (offline,) = (job / "wandb").glob("offline-run-*/run-*.wandb")
+    records = wandb_records(offline)
+    (started,) = [r.run for r in records if r.HasField("run")]
+    assert (started.project, started.run_group, started.display_name) == (
+        tmp_path.name,
+        "run",
+        "jobs/finetune/seed_0",
+    )
+    config = {u.key: json.loads(u.value_json) for u in started.config.update}
+    assert config["train.lr"] == 0.002 and config["seed"] == 0
+    steps = {}
+    for r in records:
+        if r.HasField("history"):
+            items = {i.key or i.nested_key[0]: json.loads(i.value_json) for i in r.history.item}
+            steps.setdefault(items["_step"], {}).update(items)
+    assert steps[3]["matrix_ade/crowd_noise_0.1"] == pytest.approx(metrics["ade"][1][0])
+    assert "nll" in steps[0] and "val_ade/crowd_noise_0.2" in steps[2]
+
+
+def wandb_records(path: Path) -> list:
+    """The records of a W&B run file: a 7-byte header, then LevelDB's log format (32 KiB
+    blocks of chunks, each with a 7-byte header: checksum, length, kind) around W&B's protobuf
+    ``Record`` messages. W&B 0.31 has no Python reader of its own."""
+    from wandb.proto import wandb_internal_pb2
+
+    raw, block, position, parts, out = path.read_bytes(), 32768, 7, b"", []
+    while position + 7 <= len(raw):
+        left = block - position % block
+        _, length, kind = struct.unpack("<IHB", raw[position : position + 7])
+        if left < 7 or length == kind == 0:  # the padding at a block's end
+            position += left
+            continue
+        chunk = raw[position + 7 : position + 7 + length]
+        position += 7 + length
+        parts = chunk if kind in (1, 2) else parts + chunk  # full, first | middle, last
+        if kind in (1, 4):
+            record = wandb_internal_pb2.Record()
+            record.ParseFromString(parts)
+            out.append(record)
+    return out
 
 
 def test_usage_names_the_command_as_the_user_typed_it(monkeypatch):

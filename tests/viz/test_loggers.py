@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from viz.loggers import MLflowLogger, flat_params, prepare_tracking
+from viz.loggers import MLflowLogger, WandbLogger, flat_params, prepare_tracking
 
 MlflowClient = pytest.importorskip("mlflow.tracking").MlflowClient
 
@@ -49,3 +49,17 @@ def test_mlflow_keeps_every_parameter_and_metric_in_requests_a_server_takes(
     (tracked,) = logger.client.search_runs([experiment.experiment_id])
     assert len(tracked.data.params) == 250 and tracked.data.params["p249"] == "249"
     assert len(tracked.data.metrics) == 1200
+
+
+def test_a_resumed_job_has_one_wandb_run_not_two(tmp_path: Path):
+    """A resumed job replays its finished tasks' events: its W&B folder is started afresh, so
+    the job holds one run, not an interrupted one beside a complete one."""
+    pytest.importorskip("wandb")
+    run = tmp_path / "crowd" / "stamp"
+    job = run / "jobs" / "finetune" / "seed_0"
+    for value in (1.0, 2.0):
+        logger = WandbLogger(job, 2, ["a"], run_folder=run, params={"train.lr": 0.01})
+        logger("epoch_end", {"task": 0, "epoch": 0, "nll": value})
+        logger.close()
+    (only,) = (job / "wandb").glob("offline-run-*/run-*.wandb")
+    assert only.stat().st_size > 0 and not (job / "wandb" / "wandb").exists()
