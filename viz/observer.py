@@ -64,7 +64,7 @@ class RecordingObserver:
         if queue is not None:
             mixture = queue.mixture.detached()
             self.recorder.log_queue(
-                self.method, when, mixture.means.numpy(), mixture.weights.numpy()
+                self.method, when, mixture.means.cpu().numpy(), mixture.weights.cpu().numpy()
             )
         for show in self.showcases:
             windows = show.scenes
