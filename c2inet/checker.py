@@ -43,15 +43,14 @@ CHECK_CONFIG = TrainConfig(epochs=2, k=3, k_train=2, diagnostics=False)
 # the tensor factories that take a device; ``*_like`` and ``Tensor.new_*`` follow their input
 FACTORIES = ("zeros", "ones", "empty", "full", "arange", "linspace", "eye", "tensor", "as_tensor")
 FACTORIES += ("rand", "randn", "randint", "randperm")
-TORCH_ROOT = str(Path(torch.__file__).parent)
 
 
 class DeviceAudit:
     """Notes every tensor factory called from code under ``roots`` without a ``device`` (and
     outside a ``with torch.device(...)`` block, which names one): such a tensor lands on the
     default device (the CPU) whatever the model's, and a run on a GPU fails or copies. Works on
-    a CPU-only machine, by wrapping the factories while it is entered; torch's own calls are
-    not the learner's to fix.
+    a CPU-only machine, by wrapping the factories while it is entered; only calls from
+    ``roots`` count (torch's own are not the learner's to fix).
 
         with DeviceAudit([Path(c2inet.__file__).parent]) as audit:
             ...
@@ -77,7 +76,7 @@ class DeviceAudit:
             if kwargs.get("device") is None and not _in_device_block():
                 caller = sys._getframe(1)  # the Python line that called the factory
                 path = caller.f_code.co_filename
-                if path.startswith(self.roots) and not path.startswith(TORCH_ROOT):
+                if path.startswith(self.roots):
                     self.found.add(f"{path}:{caller.f_lineno}")
             return factory(*args, **kwargs)
 

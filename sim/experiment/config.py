@@ -156,7 +156,7 @@ class Execution:
                 raise InputError(f"--logger {name!r}: unknown{hint} (known: {', '.join(LOGGERS)})")
             if name == "wandb" and equals and uri not in WANDB_MODES:
                 raise InputError(f"--logger {spec[:80]!r}: W&B's mode is offline or online")
-            if equals and name not in ("mlflow", "wandb") or equals and not uri:
+            if equals and (name not in ("mlflow", "wandb") or not uri):
                 raise InputError(
                     f"--logger {spec[:80]!r}: only mlflow=URI and wandb=online take a value"
                 )
