@@ -4,7 +4,6 @@ Every check compares ``metrics.json`` byte for byte with an uninterrupted run's.
 """
 
 import json
-import os
 import shutil
 import signal
 import subprocess
@@ -29,13 +28,15 @@ QUICK_CONFIG = {  # QUICK with --epochs EPOCHS, as the engine takes it
 EPOCHS = str(QUICK_CONFIG["epochs"])  # the runs of these tests, killed, resumed and parallel
 
 
-def start(out: Path, cache: Path, *extra: str, cwd: Path | None = None) -> subprocess.Popen:
-    command = [sys.executable, "-m", "sim.run", *QUICK, "--cache", str(cache), *extra]
-    if out is not None:
-        command += ["--out", str(out)]
+def start(out: Path, cache: Path, *extra: str) -> subprocess.Popen:
+    return launch(
+        [sys.executable, "-m", "sim.run", *QUICK, "--cache", str(cache), *extra, "--out", str(out)]
+    )
+
+
+def launch(command: list[str]) -> subprocess.Popen:
     return subprocess.Popen(
         command,
-        cwd=cwd,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -51,11 +52,11 @@ def finish(process: subprocess.Popen) -> subprocess.CompletedProcess:
 
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory):
-    """An uninterrupted quick run: its folder, its metrics.json, and the domain cache it filled
-    (the tests below read it rather than generate the same domains again)."""
+    """An uninterrupted quick run, made in this process: its folder, its metrics.json, and the
+    domain cache it filled (the tests below read it rather than generate the same domains)."""
     root = tmp_path_factory.mktemp("reference")
-    done = finish(start(root / "run", root / "cache", "--epochs", EPOCHS))
-    assert done.returncode == 0, done.stderr
+    config = ExperimentConfig(**QUICK_CONFIG)
+    run_experiment(config, root / "run", Execution(cache=root / "cache", workers=1))
     return root / "run", (root / "run" / "metrics.json").read_bytes(), root / "cache"
 
 
@@ -67,71 +68,58 @@ def wait_for(process: subprocess.Popen, path: Path, seconds: float = 120) -> Non
         time.sleep(0.005)
 
 
-@pytest.mark.parametrize(
-    "moment",
-    [
-        "config.json",  # during generation
-        "jobs/c2inet-online/seed_0/checkpoints/task_00.pt",  # mid-job
-        "jobs/c2inet-online/seed_0/result.json",  # between jobs
-    ],
-)
-def test_killed_runs_resume_to_the_same_metrics(tmp_path, reference, moment):
-    out = tmp_path / "run"
-    cache = tmp_path / "cache" if moment == "config.json" else reference[2]  # killed generating
+def stop_at(process: subprocess.Popen, path: Path, signum: int) -> subprocess.CompletedProcess:
+    """Send ``signum`` to the run the moment ``path`` appears; what it printed as it ended."""
+    wait_for(process, path)
+    process.send_signal(signum)
+    return finish(process)
+
+
+def test_a_run_killed_or_interrupted_at_every_moment_resumes_to_the_same_metrics(
+    tmp_path, reference
+):
+    """One run stopped four times, each stop resumed: kill -9 while it generates, mid-job and
+    between jobs, and Ctrl-C mid-job, whose last line is the command that resumes it. Each
+    stop leaves no metrics, a folder refused without --resume, and the end is the
+    uninterrupted run's metrics.json byte for byte."""
+    out, cache = tmp_path / "run", tmp_path / "cache"  # a cache of its own: killed generating
+    job = out / "jobs" / "c2inet-online" / "seed_0"
+    moments = {
+        "generating": (out / "config.json", signal.SIGKILL),
+        "mid-job": (job / "checkpoints" / "task_00.pt", signal.SIGKILL),
+        "ctrl-c mid-job": (job / "checkpoints" / "task_01.pt", signal.SIGINT),
+        "between jobs": (job / "result.json", signal.SIGKILL),
+    }
     process = start(out, cache, "--epochs", EPOCHS)
-    wait_for(process, out / moment)
-    process.send_signal(signal.SIGKILL)
-    assert process.wait() == -signal.SIGKILL
-    assert not (out / "metrics.json").exists() and not (out / "recording.rrd").exists()
-    with pytest.raises(InputError, match="--resume"):  # never mixed into
-        claim(out, ExperimentConfig(**QUICK_CONFIG), Execution())
-    resumed = finish(start(out, cache, "--epochs", EPOCHS, "--resume"))
+    for moment, (path, signum) in moments.items():
+        stopped = stop_at(process, path, signum)
+        assert not (out / "metrics.json").exists(), moment
+        assert not (out / "recording.rrd").exists(), moment
+        with pytest.raises(InputError, match="--resume"):  # never mixed into
+            claim(out, ExperimentConfig(**QUICK_CONFIG), Execution())
+        if signum == signal.SIGKILL:
+            assert stopped.returncode == -signal.SIGKILL, moment
+            process = start(out, cache, "--epochs", EPOCHS, "--resume")
+            continue
+        assert stopped.returncode == 130 and "Traceback" not in stopped.stderr
+        last = stopped.stderr.strip().splitlines()[-1]
+        assert last.startswith("interrupted:") and last.endswith("--resume")
+        command = last.partition("continue with: ")[2].split()
+        assert command[:3] == ["python", "-m", "sim.run"]
+        process = launch([sys.executable, *command[1:]])  # the command it printed
+    resumed = finish(process)
     assert resumed.returncode == 0, resumed.stderr
     assert (out / "metrics.json").read_bytes() == reference[1]
     assert (out / "recording.rrd").stat().st_size > 0
     assert not list(out.rglob("*.partial.rrd")) and not list(out.rglob(".*.tmp*"))
 
 
-def test_ctrl_c_leaves_one_line_and_a_command_that_resumes(tmp_path, reference):
-    out = tmp_path / "run"
-    process = start(out, reference[2], "--epochs", EPOCHS)
-    wait_for(process, out / "jobs/c2inet-online/seed_0/checkpoints/task_00.pt")
-    process.send_signal(signal.SIGINT)
-    stopped = finish(process)
-    assert stopped.returncode == 130 and "Traceback" not in stopped.stderr
-    last = stopped.stderr.strip().splitlines()[-1]
-    assert last.startswith("interrupted:") and last.endswith("--resume")
-    command = last.partition("continue with: ")[2].split()
-    assert command[:3] == ["python", "-m", "sim.run"]
-    command[0] = sys.executable
-    resumed = subprocess.run(command, capture_output=True, text=True, check=False)
-    assert resumed.returncode == 0, resumed.stderr
-    assert (out / "metrics.json").read_bytes() == reference[1]
-
-
 @pytest.mark.parametrize("backend", ["local", "ray"])
-def test_parallel_jobs_give_the_same_metrics(tmp_path, reference, backend):
-    env = {**os.environ, "HOME": str(tmp_path)}  # Ray writes its token under the home folder
-    command = [
-        sys.executable,
-        "-m",
-        "sim.run",
-        *QUICK,
-        "--epochs",
-        EPOCHS,
-        "--seeds",
-        "1",
-        "--jobs",
-        "2",
-        "--backend",
-        backend,
-        "--cache",
-        str(reference[2]),
-        "--out",
-        str(tmp_path / "run"),
-    ]
-    done = subprocess.run(command, capture_output=True, text=True, env=env, check=False)
-    assert done.returncode == 0, done.stderr
+def test_parallel_jobs_give_the_same_metrics(tmp_path, reference, backend, monkeypatch):
+    monkeypatch.setenv("HOME", str(tmp_path))  # Ray writes its token under the home folder
+    config = ExperimentConfig(**QUICK_CONFIG)
+    execution = Execution(backend=backend, jobs=2, cache=reference[2], workers=1)
+    run_experiment(config, tmp_path / "run", execution)
     assert (tmp_path / "run" / "metrics.json").read_bytes() == reference[1]
     card = json.loads((tmp_path / "run" / "run_card.json").read_text())
     assert card["backend"] == backend and card["jobs"] == 2
