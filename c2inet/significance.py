@@ -10,7 +10,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
 LEVEL = 0.95  # of every interval
 ALPHA = 0.05  # a paired difference is marked significant below this p-value
@@ -22,6 +21,8 @@ def interval(values: np.ndarray | list[float], level: float = LEVEL) -> tuple[fl
     values = np.asarray(values, dtype=float)
     if len(values) < 2:
         return None
+    from scipy import stats  # a second of import: only where a table has seeds
+
     mean, sem = values.mean(), stats.sem(values)
     if sem == 0:
         return float(mean), float(mean)
@@ -54,5 +55,7 @@ def paired(method: list[float], reference: list[float]) -> Paired:
         if np.ptp(difference) <= TIE:  # no spread: t is undefined, the sign is sure
             p_value = 1.0 if abs(difference[0]) <= TIE else 0.0
         else:
+            from scipy import stats
+
             p_value = float(stats.ttest_rel(a, b).pvalue)
     return Paired(float(difference.mean()), interval(difference), p_value)

@@ -9,20 +9,22 @@ From a notebook::
     metrics = run_experiment(ExperimentConfig("crowd_noise_0.1..0.3", quick=True))
 """
 
-from sim.experiment.config import (
-    DEFAULT_METHODS,
-    Execution,
-    ExperimentConfig,
-    Job,
-    parse_settings,
-)
-from sim.experiment.runner import run_experiment
+from importlib import import_module
 
-__all__ = [
-    "DEFAULT_METHODS",
-    "Execution",
-    "ExperimentConfig",
-    "Job",
-    "parse_settings",
-    "run_experiment",
-]
+_HOMES = {
+    "DEFAULT_METHODS": "sim.experiment.config",
+    "Execution": "sim.experiment.config",
+    "ExperimentConfig": "sim.experiment.config",
+    "Job": "sim.experiment.config",
+    "parse_settings": "sim.experiment.config",
+    "run_experiment": "sim.experiment.runner",
+}
+__all__ = sorted(_HOMES)
+
+
+def __getattr__(name: str):
+    """The names above, imported on first use: a process that needs one engine module (a
+    backend's worker, ``sim.experiment.backends`` in a user's script) does not import them all."""
+    if name in _HOMES:
+        return getattr(import_module(_HOMES[name]), name)
+    raise AttributeError(f"module 'sim.experiment' has no attribute {name!r}")

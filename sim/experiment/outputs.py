@@ -42,7 +42,6 @@ from c2inet.report import (
     summarise_diagnostics,
 )
 from sim.data import SPLITS
-from viz import figures
 from viz.recording import merge_recordings
 
 if TYPE_CHECKING:
@@ -422,6 +421,8 @@ def write_outputs(
     }
     report = markdown_report(config.scenario, labels, config.k, summary, run)
     write_text_atomic(out / "report.md", report)
+    from viz import figures  # matplotlib: imported by the run that draws, not by every command
+
     families = [s.family.name for s in curriculum.specs]
     for name, result in summary.items():
         matrix = out / "figures" / f"matrix_{name}.png"

@@ -17,9 +17,19 @@ from sim.run import main
 
 
 def run(*args):
+    """``python -m sim.run ARGS`` as a process: its exit code and output."""
     return subprocess.run(
         [sys.executable, "-m", "sim.run", *args], capture_output=True, text=True, check=False
     )
+
+
+def run_here(capsys, *args) -> subprocess.CompletedProcess:
+    """``sim.run`` in this process (torch and the data already imported): its exit code and
+    output, as :func:`run` gives them."""
+    capsys.readouterr()
+    code = main(list(args))
+    out, err = capsys.readouterr()
+    return subprocess.CompletedProcess(args, code, out, err)
 
 
 def refused(capsys, *args) -> list[str]:
@@ -29,9 +39,10 @@ def refused(capsys, *args) -> list[str]:
     return capsys.readouterr().err.strip().splitlines()
 
 
-def test_quick_run_writes_every_output(tmp_path):
+def test_quick_run_writes_every_output(tmp_path, capsys):
     out = tmp_path / "run"
-    result = run(
+    result = run_here(
+        capsys,
         "--scenario",
         "crowd_noise_0.1..0.3",
         "--quick",
@@ -101,8 +112,9 @@ def test_quick_run_writes_every_output(tmp_path):
     ]
 
 
-def test_settings_reach_the_method_and_the_run_card(tmp_path):
-    result = run(
+def test_settings_reach_the_method_and_the_run_card(tmp_path, capsys):
+    result = run_here(
+        capsys,
         "--scenario",
         "crowd_noise_0.1,0.2",
         "--quick",
@@ -125,8 +137,9 @@ def test_settings_reach_the_method_and_the_run_card(tmp_path):
     assert card["model"]["beta_z"] == 0 and card["settings"]["c2inet-online"] == {"capacity": 1}
 
 
-def test_seeds_give_mean_and_std(tmp_path):
-    result = run(
+def test_seeds_give_mean_and_std(tmp_path, capsys):
+    result = run_here(
+        capsys,
         "--scenario",
         "crowd_radius_0.2,0.4",
         "--quick",
@@ -254,11 +267,11 @@ def test_bad_input_is_exit_code_2_and_one_line_from_the_command():
     assert "did you mean 'crowd_noise'?" in lines[0]
 
 
-def test_knob_overrides_reach_the_domains_and_the_run_card(tmp_path):
+def test_knob_overrides_reach_the_domains_and_the_run_card(tmp_path, capsys):
     args = ["--scenario", "crowd_noise_0.1 + crowd_noise_0.2", "--quick", "--methods", "cv"]
     args += ["--cache", str(tmp_path / "cache"), "--no-record", "--logger", "csv,tensorboard"]
-    plain = run(*args, "--out", str(tmp_path / "plain"))
-    tweaked = run(*args, "--set", "data.agents=4", "--out", str(tmp_path / "tweaked"))
+    plain = run_here(capsys, *args, "--out", str(tmp_path / "plain"))
+    tweaked = run_here(capsys, *args, "--set", "data.agents=4", "--out", str(tmp_path / "tweaked"))
     assert plain.returncode == 0 and tweaked.returncode == 0, tweaked.stderr
     cards = [json.loads((tmp_path / n / "run_card.json").read_text()) for n in ("plain", "tweaked")]
     assert [d["knobs"]["agents"] for d in cards[1]["domains"]] == [4, 4]
@@ -267,11 +280,13 @@ def test_knob_overrides_reach_the_domains_and_the_run_card(tmp_path):
     assert cards[1]["settings"]["data"] == {"agents": 4}
 
 
-def test_loggers_write_the_numbers_of_metrics_json(tmp_path):
+def test_loggers_write_the_numbers_of_metrics_json(tmp_path, capsys):
     out = tmp_path / "run"
     args = ["--scenario", "crowd_noise_0.1,0.2", "--quick", "--methods", "finetune", "--no-record"]
     loggers = "csv,tensorboard,mlflow,wandb"
-    done = run(*args, "--logger", loggers, "--set", "train.lr=0.002", "--out", str(out))
+    done = run_here(
+        capsys, *args, "--logger", loggers, "--set", "train.lr=0.002", "--out", str(out)
+    )
     assert done.returncode == 0, done.stderr
     metrics = json.loads((out / "metrics.json").read_text())["methods"]["finetune"]
     job = out / "jobs" / "finetune" / "seed_0"
