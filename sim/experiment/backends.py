@@ -10,9 +10,11 @@ from __future__ import annotations
 import ctypes
 import multiprocessing
 import os
+import pickle
 import signal
 import socket
 import sys
+import tempfile
 import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -36,15 +38,16 @@ def _die_with_parent() -> None:
         ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
 
 
-def _start_worker(shared: tuple, driver: int) -> None:
+def _start_worker(shared: str, driver: int) -> None:
     """A local worker ignores Ctrl-C (the driver stops it), dies with the driver and keeps the
-    shared inputs."""
+    shared inputs, which it reads from the driver's file ``shared``."""
     global _shared
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _die_with_parent()
     if os.getppid() != driver:  # the driver died before the request took effect
         os._exit(1)
-    _shared = shared
+    with open(shared, "rb") as file:
+        _shared = pickle.load(file)  # written by this run's driver a moment ago
 
 
 def _exit_on(signum, _frame) -> None:
@@ -96,13 +99,18 @@ def run_jobs(
     if processes <= 1 or len(jobs) <= 1:
         return [fn(job, *shared, **options, on_event=progress) for job in jobs]
     check_importable_main()
-    pool = ProcessPoolExecutor(
-        min(processes, len(jobs)),
-        multiprocessing.get_context("spawn"),  # torch and fork do not mix
-        _start_worker,
-        (shared, os.getpid()),
-    )
-    with _StopOnTermination():
+    with tempfile.TemporaryDirectory(prefix="c2i-jobs-") as folder, _StopOnTermination():
+        # the shared inputs go through a file, not the workers' start-up pipe: a start-up
+        # message larger than the pipe holds blocks the driver until that worker has imported
+        # the project, so the workers would start one after another
+        path = Path(folder) / "shared.pickle"
+        path.write_bytes(pickle.dumps(shared, protocol=pickle.HIGHEST_PROTOCOL))
+        pool = ProcessPoolExecutor(
+            min(processes, len(jobs)),
+            multiprocessing.get_context("spawn"),  # torch and fork do not mix
+            _start_worker,
+            (str(path), os.getpid()),
+        )
         return _run_in_pool(pool, fn, jobs, options, progress, tasks_of)
 
 
