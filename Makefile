@@ -22,7 +22,7 @@ run: venv
 	$(PY) -m sim.run --scenario $(SCENARIO)
 
 test: venv
-	$(PY) -m pytest -q -n auto --durations=15
+	$(PY) -m pytest -q -n auto --dist loadgroup --durations=15
 
 lint: venv
 	$(VENV)/bin/ruff check . && $(VENV)/bin/ruff format --check .

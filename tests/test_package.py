@@ -105,14 +105,16 @@ def test_a_wheel_in_a_fresh_environment_generates_domains_anywhere(tmp_path, mon
     run(
         venv / "bin" / "c2i-generate",
         "--scenario",
-        "crowd_radius_0.2+eth_ucy_eth",
+        "crowd_noise_0.2+eth_ucy_eth",
         "--out",
         "out",
         "--workers",
         "1",
+        *("--set", "data.splits.train=6", "--set", "data.splits.val=2"),  # a few scenes
+        *("--set", "data.splits.test=2"),
         cwd=elsewhere,
     )
     assert {p.name for p in (elsewhere / "out").glob("*.parquet")} == {
-        "crowd_radius_0.2.parquet",
+        "crowd_noise_0.2.parquet",
         "eth_ucy_eth.parquet",
     }

@@ -1,6 +1,8 @@
 """The Rerun recording and figures of a --quick run, live streaming, and the web viewer server."""
 
+import contextlib
 import importlib.util
+import io
 import os
 import shutil
 import subprocess
@@ -15,9 +17,13 @@ import pytest
 import rerun.blueprint as rrb
 from rerun.chunk import RrdReader
 
+from sim.run import main
 from viz.colours import faint, method_colour, task_shade
 from viz.recording import curve_views, extent
 from viz.serve import command, free_port, launch, stop, wait_for_port
+
+# one test worker takes this module (make test: --dist loadgroup): its recorded run is made once
+pytestmark = pytest.mark.xdist_group("test_viz")
 
 RERUN = str(Path(sys.executable).with_name("rerun"))
 TASKS = ("crowd_noise_0.1", "crowd_noise_0.2")
@@ -29,28 +35,14 @@ def env(tmp_path_factory):
     return {**os.environ, "XDG_CONFIG_HOME": str(tmp_path_factory.mktemp("xdg"))}
 
 
-def quick_run(out: Path, env, *extra: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "sim.run",
-            "--scenario",
-            "crowd_noise_0.1,0.2",
-            "--quick",
-            "--methods",
-            "c2inet-online,finetune,cv",
-            "--out",
-            str(out),
-            "--cache",
-            str(out.parent / "cache"),
-            *extra,
-        ],
-        capture_output=True,
-        text=True,
-        check=False,
-        env=env,
-    )
+def quick_run(out: Path, *extra: str) -> subprocess.CompletedProcess:
+    """A quick run of ``python -m sim.run``, in this process: its exit code and output."""
+    argv = ["--scenario", "crowd_noise_0.1,0.2", "--quick", "--out", str(out)]
+    argv += ["--methods", "c2inet-online,finetune,cv", "--cache", str(out.parent / "cache")]
+    stdout, stderr = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
+        code = main([*argv, *extra])
+    return subprocess.CompletedProcess(argv, code, stdout.getvalue(), stderr.getvalue())
 
 
 def rows_per_entity(path: Path) -> Counter:
@@ -61,9 +53,9 @@ def rows_per_entity(path: Path) -> Counter:
 
 
 @pytest.fixture(scope="module")
-def recorded(tmp_path_factory, env):
+def recorded(tmp_path_factory):
     out = tmp_path_factory.mktemp("run")
-    result = quick_run(out, env)
+    result = quick_run(out)
     assert result.returncode == 0, result.stderr
     return out
 
@@ -242,7 +234,6 @@ def test_live_stream_reaches_a_local_viewer_server(tmp_path, env):
         assert wait_for_port(port)
         result = quick_run(
             tmp_path / "run",
-            env,
             "--no-record",
             "--rerun",
             f"connect=rerun+http://127.0.0.1:{port}/proxy",
@@ -295,8 +286,8 @@ def test_web_viewer_serves_on_loopback_only(recorded, env):
     assert not wait_for_port(web_port, 1.0)
 
 
-def test_bad_rerun_option_is_rejected(env, tmp_path):
-    result = quick_run(tmp_path, env, "--rerun", "broadcast")
+def test_bad_rerun_option_is_rejected(tmp_path):
+    result = quick_run(tmp_path, "--rerun", "broadcast")
     assert result.returncode == 2 and "--rerun" in result.stderr
 
 
