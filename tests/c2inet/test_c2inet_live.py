@@ -18,9 +18,6 @@ from c2inet.trainer import ContinualTrainer, Task, TrainConfig
 
 from toys import walkers
 
-# one test worker takes this module (make test: --dist loadgroup): its trained model is made once
-pytestmark = pytest.mark.xdist_group("test_c2inet_live")
-
 
 def toy_tasks(scenes=48) -> list[Task]:
     """Two domains told apart by the observed frames: crowds walking east, then north."""

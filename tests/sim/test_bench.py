@@ -15,9 +15,6 @@ from sim.experiment.config import Execution
 from sim.experiment.jobs import prepare
 from sim.experiment.tuning import TuneConfig, run_tuning, validation_inputs
 
-# one test worker takes this module (make test: --dist loadgroup): its tuned toy is made once
-pytestmark = pytest.mark.xdist_group("test_bench")
-
 BAD_LR = 1e-5  # a default that barely trains in two epochs
 
 

@@ -18,9 +18,6 @@ from c2inet.errors import InputError
 from sim.experiment import Execution, ExperimentConfig, run_experiment
 from sim.experiment.outputs import claim, output_folder
 
-# one test worker takes this module (make test: --dist loadgroup): its reference run is made once
-pytestmark = pytest.mark.xdist_group("test_experiment")
-
 QUICK = ["--scenario", "crowd_noise_0.1..0.3", "--quick", "--methods", "c2inet-online,finetune"]
 QUICK_CONFIG = {  # QUICK with --epochs EPOCHS, as the engine takes it
     "scenario": "crowd_noise_0.1..0.3",

@@ -22,9 +22,6 @@ from viz.colours import faint, method_colour, task_shade
 from viz.recording import curve_views, extent
 from viz.serve import command, free_port, launch, stop, wait_for_port
 
-# one test worker takes this module (make test: --dist loadgroup): its recorded run is made once
-pytestmark = pytest.mark.xdist_group("test_viz")
-
 RERUN = str(Path(sys.executable).with_name("rerun"))
 TASKS = ("crowd_noise_0.1", "crowd_noise_0.2")
 
