@@ -85,17 +85,23 @@ def run_jobs(
     options: dict[str, Any] | None = None,
     progress: Callable[[str, dict], Any] | None = None,
     tasks_of: Callable[[Any], int] = lambda _job: 1,
+    cost_of: Callable[[Any], float] = lambda _job: 0.0,
 ) -> list[Any]:
     """``[fn(job, *shared, **options) for job in jobs]`` on ``backend``.
 
     ``progress(event, data)`` follows the work: jobs run in this process pass it every trainer
     event (``fn`` receives it as ``on_event``); a job that finishes elsewhere sends
-    ``("job_end", {"tasks": tasks_of(job)})``.
+    ``("job_end", {"tasks": tasks_of(job)})``. Workers take the jobs longest first by
+    ``cost_of(job)`` (ties in the given order), so no long job is left to run alone at the end;
+    the results come back in the jobs' order.
     """
     options = options or {}
     progress = progress or (lambda _event, _data: None)
+    order = sorted(range(len(jobs)), key=lambda i: -cost_of(jobs[i]))
     if backend == "ray":
-        return _run_on_ray(fn, jobs, shared, processes, ray_address, options, progress, tasks_of)
+        return _run_on_ray(
+            fn, jobs, order, shared, processes, ray_address, options, progress, tasks_of
+        )
     if processes <= 1 or len(jobs) <= 1:
         return [fn(job, *shared, **options, on_event=progress) for job in jobs]
     check_importable_main()
@@ -111,7 +117,7 @@ def run_jobs(
             _start_worker,
             (str(path), os.getpid()),
         )
-        return _run_in_pool(pool, fn, jobs, options, progress, tasks_of)
+        return _run_in_pool(pool, fn, jobs, order, options, progress, tasks_of)
 
 
 def check_importable_main() -> None:
@@ -125,12 +131,11 @@ def check_importable_main() -> None:
         )
 
 
-def _run_in_pool(pool, fn, jobs, options, progress, tasks_of) -> list[Any]:
-    """The jobs on a local pool, in order; the workers are stopped however this ends."""
+def _run_in_pool(pool, fn, jobs, order, options, progress, tasks_of) -> list[Any]:
+    """The jobs on a local pool, submitted in ``order``; the workers are stopped however this
+    ends."""
     try:
-        futures = {
-            pool.submit(_call_in_worker, (fn, job, options)): i for i, job in enumerate(jobs)
-        }
+        futures = {pool.submit(_call_in_worker, (fn, jobs[i], options)): i for i in order}
         results: dict[int, Any] = {}
         for future in as_completed(futures):
             index = futures[future]
@@ -169,7 +174,7 @@ def check_ray_address(address: str, seconds: float = 5.0) -> None:
         raise InputError(f"{where}: nothing answers there ({error.strerror or error})") from None
 
 
-def _run_on_ray(fn, jobs, shared, processes, address, options, progress, tasks_of):
+def _run_on_ray(fn, jobs, order, shared, processes, address, options, progress, tasks_of):
     """One Ray task per job with one CPU; the shared inputs go to the object store once."""
     try:
         import ray
@@ -182,7 +187,7 @@ def _run_on_ray(fn, jobs, shared, processes, address, options, progress, tasks_o
     try:
         refs = [ray.put(item) for item in shared]
         remote = ray.remote(num_cpus=1)(fn)
-        pending = {remote.remote(job, *refs, **options): i for i, job in enumerate(jobs)}
+        pending = {remote.remote(jobs[i], *refs, **options): i for i in order}
         results: dict[int, Any] = {}
         while pending:
             done, _ = ray.wait(list(pending), num_returns=1)

@@ -24,7 +24,7 @@ from c2inet.significance import ALPHA
 from sim.experiment.config import Execution, ExperimentConfig
 from sim.experiment.outputs import COLUMNS, claim, tidy_rows, write_results
 from sim.experiment.sweep import layered, plan, run_together
-from sim.experiment.tuning import TuneConfig, run_tuning
+from sim.experiment.tuning import TuneConfig, run_tuning, trial_seconds
 from viz.figures import leaderboard_figure
 
 
@@ -123,7 +123,8 @@ def run_bench(
         config = replace(bench.base, methods=(method,), settings=settings)
         folder = out / "evaluation" / method
         planned.append(plan(method, config, folder, execution, (folder / "config.json").is_file()))
-    done = run_together(planned, execution, resume=True, argv=argv or [])
+    costs = [trial_seconds(out / "tuning", m) for m in bench.base.methods]  # longest first
+    done = run_together(planned, execution, resume=True, argv=argv or [], costs=costs)
     names = bench.base.methods
     methods = {m: metrics["methods"][m] for m, (metrics, _) in zip(names, done, strict=True)}
     cost = {

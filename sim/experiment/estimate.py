@@ -59,9 +59,14 @@ def method_seconds(config, name: str, tasks: list[Task]) -> float:
     return total
 
 
-def run_seconds(config, tasks: list[Task], parallel: int) -> float:
-    """The estimated wall time of every job of ``config``, ``parallel`` at a time."""
-    each = {name: method_seconds(config, name, tasks) for name in config.methods}
+def job_seconds(config, tasks: list[Task]) -> dict[str, float]:
+    """The estimated time of one job of each method of ``config``."""
+    return {name: method_seconds(config, name, tasks) for name in config.methods}
+
+
+def run_seconds(config, each: dict[str, float], parallel: int) -> float:
+    """The estimated wall time of every job of ``config``, ``parallel`` at a time, each job of
+    method m taking ``each[m]`` (:func:`job_seconds`) and the longest taken first."""
     jobs = sorted(
         (each[name] for name in config.methods for _ in range(config.seeds)), reverse=True
     )

@@ -19,7 +19,7 @@ from tqdm import tqdm
 
 from sim.experiment.backends import run_jobs
 from sim.experiment.config import Execution, ExperimentConfig
-from sim.experiment.estimate import describe, run_seconds
+from sim.experiment.estimate import describe, job_seconds, run_seconds
 from sim.experiment.jobs import follow, prepare, record_truth, run_job
 from sim.experiment.outputs import TRUTH_PART, claim, output_folder, write_outputs
 from viz.live import check_reachable, viewer_url
@@ -56,8 +56,10 @@ def run_experiment(
         truth = record_truth(config, curriculum, path, execution.rerun)
     jobs = config.jobs()
     tasks = len(curriculum.inputs.tasks)
+    each: dict[str, float] = {}  # a job's estimated seconds by method: the longest go first
     if not resume:
-        estimate = run_seconds(config, curriculum.inputs.tasks, execution.jobs)
+        each = job_seconds(config, curriculum.inputs.tasks)
+        estimate = run_seconds(config, each, execution.jobs)
         print(
             f"{len(jobs)} jobs x {tasks} tasks, {execution.jobs} at a time: about "
             f"{describe(estimate)} of training and evaluation (timed on this machine)",
@@ -74,6 +76,7 @@ def run_experiment(
             options=execution.job_options(resume),
             progress=follow(bar),
             tasks_of=lambda _job: tasks,
+            cost_of=lambda job: each.get(job.method, 0.0),
         )
     wall = time.perf_counter() - started
     return write_outputs(out, config, execution, curriculum, results, truth, wall, argv or sys.argv)

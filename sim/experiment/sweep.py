@@ -168,10 +168,15 @@ def plan(
 
 
 def run_together(
-    planned: list[Planned], execution: Execution, resume: bool, argv: list[str]
+    planned: list[Planned],
+    execution: Execution,
+    resume: bool,
+    argv: list[str],
+    costs: list[float] | None = None,
 ) -> list[tuple[dict, list[JobResult]]]:
     """Run the jobs of several experiments together on one backend, then write each one's
-    outputs in its folder; returns each one's metrics and job results, in order."""
+    outputs in its folder; returns each one's metrics and job results, in order. ``costs``:
+    the expected seconds of one job of each experiment, so the longest start first."""
     started = time.perf_counter()
     items = [(i, job) for i, (_, config, _, _) in enumerate(planned) for job in config.jobs()]
     shared = [(config, curriculum.inputs, folder) for _, config, folder, curriculum in planned]
@@ -187,6 +192,7 @@ def run_together(
             execution.job_options(resume),
             follow(bar),
             lambda item: tasks[item[0]],
+            lambda item: costs[item[0]] if costs else 0.0,
         )
     wall = time.perf_counter() - started
     done = []

@@ -173,7 +173,8 @@ def run_tuning(
             curriculum.inputs = validation_inputs(curriculum)
             asked.append((method, trial))
             planned.append((label, config, folder, curriculum))
-        done = run_together(planned, execution, resume=True, argv=[])
+        costs = [trial_seconds(out, method) for method, _ in asked]  # the longest start first
+        done = run_together(planned, execution, resume=True, argv=[], costs=costs)
         for (method, trial), (metrics, _) in zip(asked, done, strict=True):
             value = metrics["methods"][method]["final_ade_k1_per_seed"][0]
             # a diverged trial is the worst there is, not a failure to ask again (same seed,
@@ -191,3 +192,13 @@ def run_tuning(
         }
     write_text_atomic(out / "tuning.json", json.dumps(chosen, indent=1) + "\n")
     return chosen
+
+
+def trial_seconds(out: Path, method: str) -> float:
+    """The mean CPU seconds of ``method``'s finished trials under the tuning folder ``out``
+    (0 before the first): what orders the trials and evaluation jobs, longest first."""
+    spent = [
+        json.loads(path.read_text()).get("cpu_seconds") or 0.0
+        for path in (out / "trials" / method).glob("trial_*/jobs/*/seed_*/result.json")
+    ]
+    return float(np.mean(spent)) if spent else 0.0

@@ -114,3 +114,23 @@ def test_a_driver_whose_workers_cannot_start_stops_with_one_line(tmp_path, how):
     assert done.returncode != 0
     expected = "is not a file" if how == "stdin" else "could not start"
     assert expected in done.stderr.splitlines()[-1]
+
+
+def note_start(job: int, folder: str) -> int:
+    """A job that notes when it started, then takes a moment."""
+    (Path(folder) / f"{job}.start").write_text(str(time.monotonic()))
+    time.sleep(0.5)
+    return 10 * job
+
+
+@pytest.mark.parametrize("backend", ["local"])
+def test_the_longest_jobs_start_first_and_results_keep_the_jobs_order(tmp_path, backend):
+    from sim.experiment.backends import run_jobs
+
+    cost = {0: 1.0, 1: 5.0, 2: 2.0, 3: 9.0}  # seconds a job is expected to take
+    results = run_jobs(
+        note_start, [0, 1, 2, 3], (str(tmp_path),), backend, 2, cost_of=cost.__getitem__
+    )
+    assert results == [0, 10, 20, 30]
+    started = sorted(cost, key=lambda job: float((tmp_path / f"{job}.start").read_text()))
+    assert set(started[:2]) == {3, 1} and set(started[2:]) == {2, 0}

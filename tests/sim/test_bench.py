@@ -148,7 +148,7 @@ def test_a_diverged_trial_counts_as_the_worst_and_tuning_moves_on(tmp_path, monk
 
     from sim.experiment import tuning
 
-    def diverging(planned, execution, resume, argv):
+    def diverging(planned, execution, resume, argv, costs=None):
         return [({"methods": {"finetune": {"final_ade_k1_per_seed": [math.nan]}}}, [])] * len(
             planned
         )
