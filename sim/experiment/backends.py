@@ -26,7 +26,8 @@ from c2inet.errors import InputError, WorkerDied, quote
 
 BACKENDS = ("local", "ray")
 
-_shared: tuple = ()  # what a local worker process received once, at its start
+_shared: tuple[str, tuple] = ("", ())  # a local worker's shared inputs: their file, its contents
+_POOL: dict[int, ProcessPoolExecutor] = {}  # this driver's local workers, by their number
 
 
 PR_SET_PDEATHSIG = 1  # Linux prctl: a signal for this process when its parent dies
@@ -38,16 +39,12 @@ def _die_with_parent() -> None:
         ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
 
 
-def _start_worker(shared: str, driver: int) -> None:
-    """A local worker ignores Ctrl-C (the driver stops it), dies with the driver and keeps the
-    shared inputs, which it reads from the driver's file ``shared``."""
-    global _shared
+def _start_worker(driver: int) -> None:
+    """A local worker ignores Ctrl-C (the driver stops it) and dies with the driver."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _die_with_parent()
     if os.getppid() != driver:  # the driver died before the request took effect
         os._exit(1)
-    with open(shared, "rb") as file:
-        _shared = pickle.load(file)  # written by this run's driver a moment ago
 
 
 def _exit_on(signum, _frame) -> None:
@@ -70,9 +67,15 @@ class _StopOnTermination:
             signal.signal(signum, handler)
 
 
-def _call_in_worker(call: tuple[Callable, Any, dict]) -> Any:
-    fn, job, options = call
-    return fn(job, *_shared, **options)
+def _call_in_worker(call: tuple[Callable, Any, dict, str]) -> Any:
+    """One job in a local worker; the call's shared inputs are read from the driver's file
+    ``shared`` by the first of its jobs that this worker runs."""
+    global _shared
+    fn, job, options, shared = call
+    if _shared[0] != shared:
+        with open(shared, "rb") as file:
+            _shared = (shared, pickle.load(file))  # written by this run's driver a moment ago
+    return fn(job, *_shared[1], **options)
 
 
 def run_jobs(
@@ -111,13 +114,27 @@ def run_jobs(
         # the project, so the workers would start one after another
         path = Path(folder) / "shared.pickle"
         path.write_bytes(pickle.dumps(shared, protocol=pickle.HIGHEST_PROTOCOL))
-        pool = ProcessPoolExecutor(
-            min(processes, len(jobs)),
-            multiprocessing.get_context("spawn"),  # torch and fork do not mix
-            _start_worker,
-            (str(path), os.getpid()),
-        )
-        return _run_in_pool(pool, fn, jobs, order, options, progress, tasks_of)
+        calls = [(fn, job, options, str(path)) for job in jobs]
+        return _run_in_pool(_pool(processes), calls, order, progress, tasks_of, jobs)
+
+
+def _pool(processes: int) -> ProcessPoolExecutor:
+    """This driver's pool of ``processes`` local workers, kept from one call to the next: a
+    benchmark's tuning rounds and its evaluation start their workers (which import the
+    project, seconds each) once."""
+    if processes not in _POOL:
+        for pool in _POOL.values():
+            _stop(pool)
+        _POOL.clear()
+        context = multiprocessing.get_context("spawn")  # torch and fork do not mix
+        _POOL[processes] = ProcessPoolExecutor(processes, context, _start_worker, (os.getpid(),))
+    return _POOL[processes]
+
+
+def _stop(pool: ProcessPoolExecutor) -> None:
+    for process in list(pool._processes.values()):  # the executor offers no public way
+        process.terminate()
+    pool.shutdown(wait=True, cancel_futures=True)
 
 
 def check_importable_main() -> None:
@@ -131,11 +148,11 @@ def check_importable_main() -> None:
         )
 
 
-def _run_in_pool(pool, fn, jobs, order, options, progress, tasks_of) -> list[Any]:
-    """The jobs on a local pool, submitted in ``order``; the workers are stopped however this
-    ends."""
+def _run_in_pool(pool, calls, order, progress, tasks_of, jobs) -> list[Any]:
+    """The calls on the local pool, submitted in ``order``; if this ends otherwise than with
+    every result (an error, Ctrl-C, SIGTERM), the workers are stopped with it."""
     try:
-        futures = {pool.submit(_call_in_worker, (fn, jobs[i], options)): i for i in order}
+        futures = {pool.submit(_call_in_worker, calls[i]): i for i in order}
         results: dict[int, Any] = {}
         for future in as_completed(futures):
             index = futures[future]
@@ -149,11 +166,11 @@ def _run_in_pool(pool, fn, jobs, order, options, progress, tasks_of) -> list[Any
                     "finished jobs are kept: add --resume to continue"
                 ) from None
             progress("job_end", {"tasks": tasks_of(jobs[index])})
-        return [results[i] for i in range(len(jobs))]
-    finally:  # on Ctrl-C or an error too: no worker outlives the driver
-        for process in list(pool._processes.values()):  # the executor offers no public way
-            process.terminate()
-        pool.shutdown(wait=True, cancel_futures=True)
+        return [results[i] for i in range(len(calls))]
+    except BaseException:  # no worker outlives a driver that stops
+        _POOL.clear()
+        _stop(pool)
+        raise
 
 
 def check_ray_address(address: str, seconds: float = 5.0) -> None:

@@ -134,3 +134,26 @@ def test_the_longest_jobs_start_first_and_results_keep_the_jobs_order(tmp_path, 
     assert results == [0, 10, 20, 30]
     started = sorted(cost, key=lambda job: float((tmp_path / f"{job}.start").read_text()))
     assert set(started[:2]) == {3, 1} and set(started[2:]) == {2, 0}
+
+
+def worker_pid(job: int) -> int:
+    time.sleep(0.5)  # long enough that both workers take a job
+    return os.getpid()
+
+
+def failing(job: int) -> None:
+    raise ValueError(f"job {job} failed")
+
+
+def test_local_workers_serve_every_call_until_one_fails():
+    """The workers start once (a benchmark's tuning rounds would each pay their imports) and
+    are stopped with a call that fails."""
+    from sim.experiment.backends import run_jobs
+
+    first = set(run_jobs(worker_pid, [0, 1, 2, 3], processes=2))
+    again = set(run_jobs(worker_pid, [0, 1, 2, 3], processes=2))
+    assert len(first) == 2 and again == first
+    with pytest.raises(ValueError, match="failed"):
+        run_jobs(failing, [0, 1], processes=2)
+    assert not any(alive(pid) for pid in first)
+    assert not set(run_jobs(worker_pid, [0, 1], processes=2)) & first
