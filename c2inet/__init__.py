@@ -5,7 +5,7 @@ The names a user needs are here::
     from c2inet import ContinualTrainer, ModelConfig, Task, TrainConfig, Windows, get_method
 """
 
-from importlib import import_module
+from c2inet.lazy import lazy_exports
 
 _HOMES = {
     "ContinualTrainer": "c2inet.trainer",
@@ -18,10 +18,6 @@ _HOMES = {
 }
 __all__ = sorted(_HOMES)
 
-
-def __getattr__(name: str):
-    """The names above, imported on first use: a module that needs only ``c2inet.errors`` (the
-    simulators' commands, their worker processes) does not pay torch's second of import."""
-    if name in _HOMES:
-        return getattr(import_module(_HOMES[name]), name)
-    raise AttributeError(f"module 'c2inet' has no attribute {name!r}")
+# imported on first use: a module that needs only ``c2inet.errors`` (the simulators'
+# commands, their worker processes) does not pay torch's second of import
+__getattr__ = lazy_exports(__name__, _HOMES)

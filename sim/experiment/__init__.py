@@ -9,7 +9,7 @@ From a notebook::
     metrics = run_experiment(ExperimentConfig("crowd_noise_0.1..0.3", quick=True))
 """
 
-from importlib import import_module
+from c2inet.lazy import lazy_exports
 
 _HOMES = {
     "DEFAULT_METHODS": "sim.experiment.config",
@@ -21,10 +21,6 @@ _HOMES = {
 }
 __all__ = sorted(_HOMES)
 
-
-def __getattr__(name: str):
-    """The names above, imported on first use: a process that needs one engine module (a
-    backend's worker, ``sim.experiment.backends`` in a user's script) does not import them all."""
-    if name in _HOMES:
-        return getattr(import_module(_HOMES[name]), name)
-    raise AttributeError(f"module 'sim.experiment' has no attribute {name!r}")
+# imported on first use: a process that needs one engine module (a backend's worker,
+# ``sim.experiment.backends`` in a user's script) does not import them all
+__getattr__ = lazy_exports(__name__, _HOMES)
