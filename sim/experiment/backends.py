@@ -16,9 +16,10 @@ import socket
 import sys
 import tempfile
 import threading
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +29,7 @@ BACKENDS = ("local", "ray")
 
 _shared: tuple[str, tuple] = ("", ())  # a local worker's shared inputs: their file, its contents
 _POOL: dict[int, ProcessPoolExecutor] = {}  # this driver's local workers, by their number
+_kept = 0  # how many kept_workers() blocks are open
 
 
 PR_SET_PDEATHSIG = 1  # Linux prctl: a signal for this process when its parent dies
@@ -115,26 +117,46 @@ def run_jobs(
         path = Path(folder) / "shared.pickle"
         path.write_bytes(pickle.dumps(shared, protocol=pickle.HIGHEST_PROTOCOL))
         calls = [(fn, job, options, str(path)) for job in jobs]
-        return _run_in_pool(_pool(processes), calls, order, progress, tasks_of, jobs)
+        finished = False
+        try:
+            results = _run_in_pool(_pool(processes), calls, order, progress, tasks_of, jobs)
+            finished = True
+            return results
+        finally:  # on Ctrl-C, SIGTERM or an error too: no worker outlives the driver's batch
+            if not (finished and _kept):
+                _stop_all()
+
+
+@contextmanager
+def kept_workers() -> Iterator[None]:
+    """Within this block the local workers serve every batch of jobs (a benchmark's tuning
+    rounds and its evaluation start them, and import the project, once); they stop at its end,
+    or with a batch that fails."""
+    global _kept
+    _kept += 1
+    try:
+        yield
+    finally:
+        _kept -= 1
+        if not _kept:
+            _stop_all()
 
 
 def _pool(processes: int) -> ProcessPoolExecutor:
-    """This driver's pool of ``processes`` local workers, kept from one call to the next: a
-    benchmark's tuning rounds and its evaluation start their workers (which import the
-    project, seconds each) once."""
+    """The driver's pool of ``processes`` local workers: the kept one, else a new one."""
     if processes not in _POOL:
-        for pool in _POOL.values():
-            _stop(pool)
-        _POOL.clear()
+        _stop_all()
         context = multiprocessing.get_context("spawn")  # torch and fork do not mix
         _POOL[processes] = ProcessPoolExecutor(processes, context, _start_worker, (os.getpid(),))
     return _POOL[processes]
 
 
-def _stop(pool: ProcessPoolExecutor) -> None:
-    for process in list(pool._processes.values()):  # the executor offers no public way
-        process.terminate()
-    pool.shutdown(wait=True, cancel_futures=True)
+def _stop_all() -> None:
+    for pool in _POOL.values():
+        for process in list(pool._processes.values()):  # the executor offers no public way
+            process.terminate()
+        pool.shutdown(wait=True, cancel_futures=True)
+    _POOL.clear()
 
 
 def check_importable_main() -> None:
@@ -149,28 +171,22 @@ def check_importable_main() -> None:
 
 
 def _run_in_pool(pool, calls, order, progress, tasks_of, jobs) -> list[Any]:
-    """The calls on the local pool, submitted in ``order``; if this ends otherwise than with
-    every result (an error, Ctrl-C, SIGTERM), the workers are stopped with it."""
-    try:
-        futures = {pool.submit(_call_in_worker, calls[i]): i for i in order}
-        results: dict[int, Any] = {}
-        for future in as_completed(futures):
-            index = futures[future]
-            try:
-                results[index] = future.result()
-            except BrokenProcessPool:
-                raise WorkerDied(
-                    "a job process died: killed, out of memory, or it could not start (a script "
-                    "that runs jobs > 1 must be a file whose work sits under "
-                    '`if __name__ == "__main__":`, since each worker imports it again); '
-                    "finished jobs are kept: add --resume to continue"
-                ) from None
-            progress("job_end", {"tasks": tasks_of(jobs[index])})
-        return [results[i] for i in range(len(calls))]
-    except BaseException:  # no worker outlives a driver that stops
-        _POOL.clear()
-        _stop(pool)
-        raise
+    """The calls on the local pool, submitted in ``order``; results in the calls' order."""
+    futures = {pool.submit(_call_in_worker, calls[i]): i for i in order}
+    results: dict[int, Any] = {}
+    for future in as_completed(futures):
+        index = futures[future]
+        try:
+            results[index] = future.result()
+        except BrokenProcessPool:
+            raise WorkerDied(
+                "a job process died: killed, out of memory, or it could not start (a script "
+                "that runs jobs > 1 must be a file whose work sits under "
+                '`if __name__ == "__main__":`, since each worker imports it again); '
+                "finished jobs are kept: add --resume to continue"
+            ) from None
+        progress("job_end", {"tasks": tasks_of(jobs[index])})
+    return [results[i] for i in range(len(calls))]
 
 
 def check_ray_address(address: str, seconds: float = 5.0) -> None:

@@ -21,6 +21,7 @@ from c2inet.files import write_text_atomic
 from c2inet.methods.base import get_method
 from c2inet.report import REFERENCE, compare, comparison_rows, markdown_table
 from c2inet.significance import ALPHA
+from sim.experiment.backends import kept_workers
 from sim.experiment.config import Execution, ExperimentConfig
 from sim.experiment.outputs import COLUMNS, claim, tidy_rows, write_results
 from sim.experiment.sweep import layered, plan, run_together
@@ -116,15 +117,17 @@ def run_bench(
     """Tune, evaluate and rank; returns the leaderboard (also written under ``out``)."""
     execution = execution or Execution()
     claim(out, bench, execution, resume, overwrite)
-    chosen = run_tuning(bench.tuning(), out / "tuning", execution)
-    planned = []
-    for method in bench.base.methods:
-        settings = layered(bench.base, chosen[method]["settings"])
-        config = replace(bench.base, methods=(method,), settings=settings)
-        folder = out / "evaluation" / method
-        planned.append(plan(method, config, folder, execution, (folder / "config.json").is_file()))
-    costs = [trial_seconds(out / "tuning", m) for m in bench.base.methods]  # longest first
-    done = run_together(planned, execution, resume=True, argv=argv or [], costs=costs)
+    with kept_workers():  # the tuning rounds and the evaluation start the workers once
+        chosen = run_tuning(bench.tuning(), out / "tuning", execution)
+        planned = []
+        for method in bench.base.methods:
+            settings = layered(bench.base, chosen[method]["settings"])
+            config = replace(bench.base, methods=(method,), settings=settings)
+            folder = out / "evaluation" / method
+            resumed = (folder / "config.json").is_file()
+            planned.append(plan(method, config, folder, execution, resumed))
+        costs = [trial_seconds(out / "tuning", m) for m in bench.base.methods]  # longest first
+        done = run_together(planned, execution, resume=True, argv=argv or [], costs=costs)
     names = bench.base.methods
     methods = {m: metrics["methods"][m] for m, (metrics, _) in zip(names, done, strict=True)}
     cost = {

@@ -145,15 +145,20 @@ def failing(job: int) -> None:
     raise ValueError(f"job {job} failed")
 
 
-def test_local_workers_serve_every_call_until_one_fails():
-    """The workers start once (a benchmark's tuning rounds would each pay their imports) and
-    are stopped with a call that fails."""
-    from sim.experiment.backends import run_jobs
+def test_kept_workers_serve_every_batch_until_one_fails():
+    """Inside ``kept_workers`` the workers start once (a benchmark's tuning rounds would each
+    pay their imports) and stop with a batch that fails; outside it, each batch has its own."""
+    from sim.experiment.backends import kept_workers, run_jobs
 
-    first = set(run_jobs(worker_pid, [0, 1, 2, 3], processes=2))
-    again = set(run_jobs(worker_pid, [0, 1, 2, 3], processes=2))
-    assert len(first) == 2 and again == first
-    with pytest.raises(ValueError, match="failed"):
-        run_jobs(failing, [0, 1], processes=2)
-    assert not any(alive(pid) for pid in first)
-    assert not set(run_jobs(worker_pid, [0, 1], processes=2)) & first
+    with kept_workers():
+        first = set(run_jobs(worker_pid, [0, 1, 2, 3], processes=2))
+        again = set(run_jobs(worker_pid, [0, 1, 2, 3], processes=2))
+        assert len(first) == 2 and again == first
+        with pytest.raises(ValueError, match="failed"):
+            run_jobs(failing, [0, 1], processes=2)
+        assert not any(alive(pid) for pid in first)
+        kept = set(run_jobs(worker_pid, [0, 1], processes=2))
+        assert not kept & first
+    assert not any(alive(pid) for pid in kept)  # stopped at the block's end
+    alone = set(run_jobs(worker_pid, [0, 1], processes=2))
+    assert not any(alive(pid) for pid in alone) and not alone & kept
