@@ -35,6 +35,15 @@ def _seconds(work: Callable[[], object], repeat: int = 1) -> float:
     return statistics.median(times)
 
 
+def training_steps(method, tasks: list[Task], batch_scenes: int) -> int:
+    """Training steps of one epoch of every task; a method that trains on every task seen so
+    far (``sees_old_tasks``: joint) steps through the growing union."""
+    sizes = [len(t.train) for t in tasks]
+    if method.sees_old_tasks:
+        sizes = list(itertools.accumulate(sizes))
+    return sum(math.ceil(size / batch_scenes) for size in sizes)
+
+
 def method_seconds(config, name: str, tasks: list[Task]) -> float:
     """The estimated time of one job of method ``name`` through ``tasks`` (one thread)."""
     method, train = config.method(name), config.train_config()
@@ -53,10 +62,7 @@ def method_seconds(config, name: str, tasks: list[Task]) -> float:
 
             step()
             per_step = _seconds(step, STEPS)
-            sizes = [len(t.train) for t in tasks]
-            if method.sees_old_tasks:  # trains on every task seen so far (joint)
-                sizes = list(itertools.accumulate(sizes))
-            steps = sum(math.ceil(size / train.batch_scenes) for size in sizes)
+            steps = training_steps(method, tasks, train.batch_scenes)
             total += per_step * steps * config.epochs
             if first.val is not None and train.val_every:
                 val = _seconds(lambda: evaluate(model, first.val, 1, 0, point_draws=0))

@@ -422,3 +422,16 @@ def test_folder_names_stay_short_and_distinct_for_long_scenarios():
     assert run_root(long_one).name.startswith("crowd_noise_0.001,0.002")
     assert run_root(long_one) != run_root(other)
     assert run_root("crowd_noise_0.1..0.6").name == "crowd_noise_0.1..0.6"  # short: unchanged
+
+
+def test_the_estimate_steps_through_the_growing_data_of_joint():
+    from c2inet.data import Windows
+    from c2inet.methods.base import get_method
+    from c2inet.trainer import Task
+    from sim.experiment.estimate import training_steps
+
+    windows = Windows(np.zeros((4, 20, 2)), np.arange(5))  # 4 scenes of one agent
+    tasks = [Task(f"t{i}", windows, None, windows) for i in range(3)]
+    assert len(windows) == 4
+    assert training_steps(get_method("finetune"), tasks, 2) == 2 + 2 + 2
+    assert training_steps(get_method("joint"), tasks, 2) == 2 + 4 + 6
