@@ -28,7 +28,7 @@ from c2inet.errors import InputError, WorkerDied, quote
 BACKENDS = ("local", "ray")
 
 _shared: tuple[str, tuple] = ("", ())  # a local worker's shared inputs: their file, its contents
-_POOL: dict[int, ProcessPoolExecutor] = {}  # this driver's local workers, by their number
+_pool: ProcessPoolExecutor | None = None  # this driver's local workers, between batches if kept
 _kept = 0  # how many kept_workers() blocks are open
 
 
@@ -117,14 +117,14 @@ def run_jobs(
         path = Path(folder) / "shared.pickle"
         path.write_bytes(pickle.dumps(shared, protocol=pickle.HIGHEST_PROTOCOL))
         calls = [(fn, job, options, str(path)) for job in jobs]
-        finished = False
         try:
-            results = _run_in_pool(_pool(processes), calls, order, progress, tasks_of, jobs)
-            finished = True
-            return results
-        finally:  # on Ctrl-C, SIGTERM or an error too: no worker outlives the driver's batch
-            if not (finished and _kept):
-                _stop_all()
+            results = _run_in_pool(_workers(processes), calls, order, progress, tasks_of, jobs)
+        except BaseException:  # an error, Ctrl-C, SIGTERM: no worker outlives the batch
+            _stop_workers()
+            raise
+        if not _kept:
+            _stop_workers()
+        return results
 
 
 @contextmanager
@@ -139,24 +139,27 @@ def kept_workers() -> Iterator[None]:
     finally:
         _kept -= 1
         if not _kept:
-            _stop_all()
+            _stop_workers()
 
 
-def _pool(processes: int) -> ProcessPoolExecutor:
+def _workers(processes: int) -> ProcessPoolExecutor:
     """The driver's pool of ``processes`` local workers: the kept one, else a new one."""
-    if processes not in _POOL:
-        _stop_all()
+    global _pool
+    if _pool is not None and _pool._max_workers != processes:  # no public way to ask
+        _stop_workers()
+    if _pool is None:
         context = multiprocessing.get_context("spawn")  # torch and fork do not mix
-        _POOL[processes] = ProcessPoolExecutor(processes, context, _start_worker, (os.getpid(),))
-    return _POOL[processes]
+        _pool = ProcessPoolExecutor(processes, context, _start_worker, (os.getpid(),))
+    return _pool
 
 
-def _stop_all() -> None:
-    for pool in _POOL.values():
-        for process in list(pool._processes.values()):  # the executor offers no public way
+def _stop_workers() -> None:
+    global _pool
+    if _pool is not None:
+        for process in list(_pool._processes.values()):  # the executor offers no public way
             process.terminate()
-        pool.shutdown(wait=True, cancel_futures=True)
-    _POOL.clear()
+        _pool.shutdown(wait=True, cancel_futures=True)
+        _pool = None
 
 
 def check_importable_main() -> None:

@@ -19,6 +19,7 @@ import torch
 from c2inet.batch import batches
 from c2inet.device import model_device
 from c2inet.diagnostics import diagnose
+from c2inet.methods.base import Method
 from c2inet.trainer import Task, evaluate, evaluate_all, start_training
 
 STEPS = 9  # timed training steps per method, after one to warm up (3 varied by 40 %)
@@ -35,7 +36,7 @@ def _seconds(work: Callable[[], object], repeat: int = 1) -> float:
     return statistics.median(times)
 
 
-def training_steps(method, tasks: list[Task], batch_scenes: int) -> int:
+def training_steps(method: Method, tasks: list[Task], batch_scenes: int) -> int:
     """Training steps of one epoch of every task; a method that trains on every task seen so
     far (``sees_old_tasks``: joint) steps through the growing union."""
     sizes = [len(t.train) for t in tasks]

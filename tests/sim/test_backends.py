@@ -123,13 +123,12 @@ def note_start(job: int, folder: str) -> int:
     return 10 * job
 
 
-@pytest.mark.parametrize("backend", ["local"])
-def test_the_longest_jobs_start_first_and_results_keep_the_jobs_order(tmp_path, backend):
+def test_the_longest_jobs_start_first_and_results_keep_the_jobs_order(tmp_path):
     from sim.experiment.backends import run_jobs
 
     cost = {0: 1.0, 1: 5.0, 2: 2.0, 3: 9.0}  # seconds a job is expected to take
     results = run_jobs(
-        note_start, [0, 1, 2, 3], (str(tmp_path),), backend, 2, cost_of=cost.__getitem__
+        note_start, [0, 1, 2, 3], (str(tmp_path),), "local", 2, cost_of=cost.__getitem__
     )
     assert results == [0, 10, 20, 30]
     started = sorted(cost, key=lambda job: float((tmp_path / f"{job}.start").read_text()))
