@@ -3,7 +3,11 @@ user's home folder (Rerun's analytics settings, matplotlib's cache; Ray's token:
 and trains on one torch thread: with tests in parallel (``make test``), torch's default of one
 thread per core made training several times slower (the project's rule for runs, too)."""
 
+import fcntl
 import os
+import shutil
+from collections.abc import Callable
+from pathlib import Path
 
 import pytest
 import torch
@@ -24,3 +28,26 @@ def private_home(tmp_path_factory):
             os.environ.pop(key, None)
         else:
             os.environ[key] = value
+
+
+@pytest.fixture(scope="session")
+def made_once(tmp_path_factory) -> Callable[[str, Callable[[Path], None]], Path]:
+    """``made_once(name, make)``: a folder that ``make`` fills once per test session, however
+    many test workers ask for it; the first builds it under a lock, the others wait for it. (A
+    module fixture is set up again each time work stealing brings its module back to a
+    worker: three times, seen.)"""
+    base = tmp_path_factory.getbasetemp()
+    root = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base  # this session's
+
+    def folder_made_once(name: str, make: Callable[[Path], None]) -> Path:
+        folder, done = root / name, root / f"{name}.done"
+        with open(root / f"{name}.lock", "w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            if not done.exists():
+                shutil.rmtree(folder, ignore_errors=True)  # a worker that failed half-way
+                folder.mkdir()
+                make(folder)
+                done.touch()
+        return folder
+
+    return folder_made_once

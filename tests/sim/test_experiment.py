@@ -50,13 +50,17 @@ def finish(process: subprocess.Popen) -> subprocess.CompletedProcess:
     return subprocess.CompletedProcess(process.args, process.returncode, stdout, stderr)
 
 
-@pytest.fixture(scope="module")
-def reference(tmp_path_factory):
-    """An uninterrupted quick run, made in this process: its folder, its metrics.json, and the
-    domain cache it filled (the tests below read it rather than generate the same domains)."""
-    root = tmp_path_factory.mktemp("reference")
-    config = ExperimentConfig(**QUICK_CONFIG)
-    run_experiment(config, root / "run", Execution(cache=root / "cache", workers=1))
+@pytest.fixture(scope="session")
+def reference(made_once):
+    """An uninterrupted quick run, made once for the session: its folder, its metrics.json,
+    and the domain cache it filled (the tests below read it rather than generate the same
+    domains). Read only: a test that changes a run copies it first."""
+
+    def make(root: Path) -> None:
+        config = ExperimentConfig(**QUICK_CONFIG)
+        run_experiment(config, root / "run", Execution(cache=root / "cache", workers=1))
+
+    root = made_once("reference", make)
     return root / "run", (root / "run" / "metrics.json").read_bytes(), root / "cache"
 
 

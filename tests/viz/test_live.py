@@ -33,10 +33,8 @@ def test_an_address_where_nothing_listens_fails_before_the_run():
         check_reachable(f"rerun+http://127.0.0.1:{free_port()}/proxy")
 
 
-def test_the_spawned_viewer_listens_on_loopback_only():
-    """The viewer's own log names the address its server bound (rerun's default: 0.0.0.0);
-    without a display the window then fails, after binding."""
-    port = free_port()
+def viewer_log(port: int) -> str:
+    """What a spawned viewer prints until its server says where it listens (or it exits)."""
     viewer = launch(viewer_command(port), None, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     try:
         log, deadline = "", time.monotonic() + 20
@@ -47,8 +45,19 @@ def test_the_spawned_viewer_listens_on_loopback_only():
             log += line
     finally:
         stop(viewer)
-    assert f"Listening for gRPC connections on 127.0.0.1:{port}" in log
-    assert "0.0.0.0" not in log
+    return log
+
+
+def test_the_spawned_viewer_listens_on_loopback_only():
+    """The viewer's own log names the address its server bound (rerun's default: 0.0.0.0).
+    Without a display the window fails and the viewer exits, sometimes before its server
+    thread has bound (seen once in about ten runs): up to three launches, every log checked."""
+    port = free_port()
+    logs = []
+    while len(logs) < 3 and not any("Listening for gRPC" in log for log in logs):
+        logs.append(viewer_log(port))
+    assert f"Listening for gRPC connections on 127.0.0.1:{port}" in logs[-1], logs
+    assert not any("0.0.0.0" in log for log in logs), logs
 
 
 @pytest.mark.skipif(
