@@ -1,7 +1,8 @@
 """How close is a run's own time estimate to what its jobs then take, method by method?
 
 For each method: the estimate ``sim.run`` prints before it starts (``job_seconds``: a few timed
-training steps, one evaluation and one set of diagnostics, scaled by the curriculum), then the
+training steps of the first two tasks with the method's hooks, one evaluation and one set of
+diagnostics, scaled by the curriculum), then the
 job itself, run in the same process (one torch thread, the domains already in the cache), and
 its CPU seconds of training and evaluation (``result.json``'s ``cpu_seconds``). Prints both and
 their ratio; the issue's target is every ratio within 0.75 to 1.25.

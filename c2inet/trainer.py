@@ -171,24 +171,30 @@ def start_training(method: Method, cfg: TrainConfig):
     return model, optimiser, rng
 
 
+def train_step(method: Method, ctx: TaskContext, batch, cfg: TrainConfig) -> dict[str, float]:
+    """One optimiser step on ``batch`` with the method's step hooks; returns the loss's parts."""
+    ctx.batch = batch
+    ctx.loss, ctx.parts, ctx.output = ctx.model.loss(batch, cfg.k_train)
+    method.before_backward(ctx)
+    ctx.optimiser.zero_grad()
+    ctx.loss.backward()
+    method.after_backward(ctx)
+    ctx.optimiser.step()
+    method.after_step(ctx)
+    parts = ctx.parts
+    ctx.batch = ctx.output = ctx.loss = None
+    return parts
+
+
 def train_epoch(method: Method, ctx: TaskContext, data: Windows, cfg: TrainConfig) -> dict:
-    """One pass over ``data`` in shuffled batches, with the method's step hooks; returns the mean
-    of each loss part over the steps."""
+    """One pass over ``data`` in shuffled batches (:func:`train_step`); returns the mean of each
+    loss part over the steps."""
     totals: dict[str, float] = {}
     steps = 0
     for batch in batches(data, cfg.batch_scenes, ctx.rng, ctx.device):
-        ctx.batch = batch
-        ctx.loss, ctx.parts, ctx.output = ctx.model.loss(batch, cfg.k_train)
-        method.before_backward(ctx)
-        ctx.optimiser.zero_grad()
-        ctx.loss.backward()
-        method.after_backward(ctx)
-        ctx.optimiser.step()
-        method.after_step(ctx)
-        for key, value in ctx.parts.items():
+        for key, value in train_step(method, ctx, batch, cfg).items():
             totals[key] = totals.get(key, 0.0) + value
         steps += 1
-    ctx.batch = ctx.output = ctx.loss = None
     return {k: v / max(steps, 1) for k, v in totals.items()}
 
 

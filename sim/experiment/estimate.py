@@ -1,9 +1,12 @@
 """How long a run will take, measured before it starts.
 
-Each method is timed on this machine for a few training steps, one evaluation and one set of
-diagnostics on the first task; the run's cost follows from how often each happens (steps per
-epoch, epochs, evaluations of every task after every task, validation of the tasks seen). It is
-an estimate: later tasks, replay and a busy machine change it.
+Each method trains on this machine through the first two tasks for a few steps each, with its
+hooks: the steps of the second task carry what a method adds once it has a past (replay, a
+teacher's forward pass, projected gradients), and its task and epoch hooks (Fisher, buffers,
+Eq 8 fits) are timed as they run. One evaluation and one set of diagnostics follow; the run's
+cost follows from how often each happens (steps per epoch, epochs, evaluations of every task
+after every task, validation of the tasks seen). An estimate: later tasks and a busy machine
+change it.
 """
 
 from __future__ import annotations
@@ -17,12 +20,12 @@ from collections.abc import Callable
 import torch
 
 from c2inet.batch import batches
-from c2inet.device import model_device
 from c2inet.diagnostics import diagnose
-from c2inet.methods.base import Method
-from c2inet.trainer import Task, evaluate, evaluate_all, start_training
+from c2inet.methods.base import Method, TaskContext
+from c2inet.trainer import Task, evaluate, evaluate_all, start_training, train_step
 
-STEPS = 9  # timed training steps per method, after one to warm up (3 varied by 40 %)
+STEPS = 9  # timed training steps per task, after one to warm up (3 varied by 40 %)
+EPOCH_HOOKS = 2  # epoch hooks timed per task: C2INet fits Eq 8 every second epoch
 
 
 def _seconds(work: Callable[[], object], repeat: int = 1) -> float:
@@ -36,13 +39,37 @@ def _seconds(work: Callable[[], object], repeat: int = 1) -> float:
     return statistics.median(times)
 
 
-def training_steps(method: Method, tasks: list[Task], batch_scenes: int) -> int:
-    """Training steps of one epoch of every task; a method that trains on every task seen so
-    far (``sees_old_tasks``: joint) steps through the growing union."""
+def training_steps(method: Method, tasks: list[Task], batch_scenes: int) -> list[int]:
+    """Training steps of one epoch of each task; a method that trains on every task seen so far
+    (``sees_old_tasks``: joint) steps through the growing union."""
     sizes = [len(t.train) for t in tasks]
     if method.sees_old_tasks:
         sizes = list(itertools.accumulate(sizes))
-    return sum(math.ceil(size / batch_scenes) for size in sizes)
+    return [math.ceil(size / batch_scenes) for size in sizes]
+
+
+def task_seconds(method: Method, ctx: TaskContext, train, epochs: int) -> tuple[float, float]:
+    """Train on task ``ctx`` as a job does, briefly: its task hooks, :data:`STEPS` timed steps
+    and the first epoch hooks. Returns (seconds a step, seconds of hooks for ``epochs``)."""
+    started = time.perf_counter()
+    ctx.model.train()
+    method.before_task(ctx)
+    data = method.training_windows(ctx)
+    hooks = time.perf_counter() - started
+    times = [
+        _seconds(lambda b=b: train_step(method, ctx, b, train))
+        for b in itertools.islice(batches(data, train.batch_scenes, ctx.rng, ctx.device), STEPS + 1)
+    ]
+    per_step = statistics.median(times[1:] or times)  # the first step warms up
+    timed = range(min(epochs, EPOCH_HOOKS))
+    if timed:  # the mean epoch hook, for every epoch
+        hooks += (
+            sum(_seconds(lambda e=e: method.after_epoch(ctx, e)) for e in timed)
+            * epochs
+            / len(timed)
+        )
+    hooks += _seconds(lambda: method.after_task(ctx))
+    return per_step, hooks
 
 
 def method_seconds(config, name: str, tasks: list[Task]) -> float:
@@ -50,21 +77,17 @@ def method_seconds(config, name: str, tasks: list[Task]) -> float:
     method, train = config.method(name), config.train_config()
     n, first = len(tasks), tasks[0]
     with torch.random.fork_rng(devices=[]):
-        model, optimiser, _ = start_training(method, train)
+        model, optimiser, rng = start_training(method, train)
         total = 0.0
         if method.trains:
-            batch = next(batches(first.train, train.batch_scenes, device=model_device(model)))
-
-            def step() -> None:
-                loss = model.loss(batch, train.k_train).loss
-                optimiser.zero_grad()
-                loss.backward()
-                optimiser.step()
-
-            step()
-            per_step = _seconds(step, STEPS)
-            steps = training_steps(method, tasks, train.batch_scenes)
-            total += per_step * steps * config.epochs
+            timed = []  # (seconds a step, seconds of hooks) of the first task, then the second
+            for i, task in enumerate(tasks[:2]):
+                seen = [t.train for t in tasks[:i]] if method.sees_old_tasks else []
+                ctx = TaskContext(i, task.name, task.train, model, optimiser, rng, seen)
+                timed.append(task_seconds(method, ctx, train, config.epochs))
+            for i, steps in enumerate(training_steps(method, tasks, train.batch_scenes)):
+                per_step, hooks = timed[min(i, len(timed) - 1)]
+                total += per_step * steps * config.epochs + hooks
             if first.val is not None and train.val_every:
                 val = _seconds(lambda: evaluate(model, first.val, 1, 0, point_draws=0))
                 total += val * config.epochs / train.val_every * n * (n + 1) / 2

@@ -437,5 +437,39 @@ def test_the_estimate_steps_through_the_growing_data_of_joint():
     windows = Windows(np.zeros((4, 20, 2)), np.arange(5))  # 4 scenes of one agent
     tasks = [Task(f"t{i}", windows, None, windows) for i in range(3)]
     assert len(windows) == 4
-    assert training_steps(get_method("finetune"), tasks, 2) == 2 + 2 + 2
-    assert training_steps(get_method("joint"), tasks, 2) == 2 + 4 + 6
+    assert training_steps(get_method("finetune"), tasks, 2) == [2, 2, 2]
+    assert training_steps(get_method("joint"), tasks, 2) == [2, 4, 6]
+
+
+def test_the_estimate_times_the_second_tasks_steps_and_every_hook():
+    """Replay, teachers and projections start with the second task, Eq 8 fits at epoch ends:
+    a method that sleeps 20 ms a step from its second task on, 30 ms at each epoch's end and
+    40 ms at each task's end is timed with all three."""
+    from c2inet.data import Windows
+    from c2inet.methods.base import TaskContext
+    from c2inet.methods.finetune import Finetune
+    from c2inet.model import ModelConfig
+    from c2inet.trainer import TrainConfig, start_training
+    from sim.experiment.estimate import task_seconds
+
+    class Slow(Finetune):
+        def before_backward(self, ctx):
+            time.sleep(0.02 if ctx.index else 0)
+
+        def after_epoch(self, ctx, epoch):
+            time.sleep(0.03)
+
+        def after_task(self, ctx):
+            time.sleep(0.04)
+
+    windows = Windows(np.random.default_rng(0).normal(size=(8, 20, 2)).astype(np.float32), np.arange(9))
+    method, train = Slow(ModelConfig()), TrainConfig(batch_scenes=2)
+    model, optimiser, rng = start_training(method, train)
+    timed = [
+        task_seconds(method, TaskContext(i, "t", windows, model, optimiser, rng), train, 10)
+        for i in (0, 1)
+    ]
+    (step_0, hooks_0), (step_1, hooks_1) = timed
+    assert step_1 > step_0 + 0.015
+    for hooks in (hooks_0, hooks_1):
+        assert 10 * 0.03 + 0.04 <= hooks < 10 * 0.03 + 0.04 + 0.1
