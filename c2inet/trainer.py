@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from c2inet.batch import batches
+from c2inet.batch import Batch, batches
 from c2inet.data import Windows
 from c2inet.device import check_device_name, cuda_rng_state, model_device, resolve_device, seeded
 from c2inet.diagnostics import diagnose
@@ -171,7 +171,9 @@ def start_training(method: Method, cfg: TrainConfig):
     return model, optimiser, rng
 
 
-def train_step(method: Method, ctx: TaskContext, batch, cfg: TrainConfig) -> dict[str, float]:
+def train_step(
+    method: Method, ctx: TaskContext, batch: Batch, cfg: TrainConfig
+) -> dict[str, float]:
     """One optimiser step on ``batch`` with the method's step hooks; returns the loss's parts."""
     ctx.batch = batch
     ctx.loss, ctx.parts, ctx.output = ctx.model.loss(batch, cfg.k_train)

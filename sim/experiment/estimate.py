@@ -72,8 +72,10 @@ def task_seconds(method: Method, ctx: TaskContext, train, epochs: int) -> tuple[
     return per_step, hooks
 
 
-def method_seconds(config, name: str, tasks: list[Task]) -> float:
-    """The estimated time of one job of method ``name`` through ``tasks`` (one thread)."""
+def method_seconds(config, name: str, tasks: list[Task], warm_up: bool = False) -> float:
+    """The estimated time of one job of method ``name`` through ``tasks`` (one thread). With
+    ``warm_up``, an evaluation and diagnostics run untimed first: a process's first ones import
+    and allocate what later ones reuse (scikit-learn alone: 0.7 s, counted once a task)."""
     method, train = config.method(name), config.train_config()
     n, first = len(tasks), tasks[0]
     with torch.random.fork_rng(devices=[]):
@@ -91,16 +93,29 @@ def method_seconds(config, name: str, tasks: list[Task]) -> float:
             if first.val is not None and train.val_every:
                 val = _seconds(lambda: evaluate(model, first.val, 1, 0, point_draws=0))
                 total += val * config.epochs / train.val_every * n * (n + 1) / 2
-        total += _seconds(lambda: evaluate_all(model, first.test, config.k, 0)) * n * n
-        if train.diagnostics:
-            once = _seconds(lambda: diagnose(model, [first.test], [first.value], 0))
-            total += once * n * (n + 1) / 2
+
+        def evaluation() -> None:
+            evaluate_all(model, first.test, config.k, 0)
+
+        def diagnostics() -> None:
+            if train.diagnostics:
+                diagnose(model, [first.test], [first.value], 0)
+
+        if warm_up:
+            evaluation()
+            diagnostics()
+        # the median of three: one evaluation counts n * n times, so a slow moment of the
+        # machine during it moved the whole estimate by a third (fine-tune 0.95, then 1.26)
+        total += _seconds(evaluation, 3) * n * n + _seconds(diagnostics, 3) * n * (n + 1) / 2
     return total
 
 
 def job_seconds(config, tasks: list[Task]) -> dict[str, float]:
-    """The estimated time of one job of each method of ``config``."""
-    return {name: method_seconds(config, name, tasks) for name in config.methods}
+    """The estimated time of one job of each method of ``config`` (the first warms up)."""
+    return {
+        name: method_seconds(config, name, tasks, warm_up=i == 0)
+        for i, name in enumerate(config.methods)
+    }
 
 
 def run_seconds(config, each: dict[str, float], parallel: int) -> float:
