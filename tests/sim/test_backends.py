@@ -113,7 +113,10 @@ def test_a_driver_whose_workers_cannot_start_stops_with_one_line(tmp_path, how):
     )
     assert done.returncode != 0
     expected = "is not a file" if how == "stdin" else "could not start"
-    assert expected in done.stderr.splitlines()[-1]
+    # the unguarded workers' own pools leak semaphores, which multiprocessing's resource tracker
+    # (a process of its own) may report after the driver's last line: seen once in CI
+    lines = [line for line in done.stderr.splitlines() if "resource_tracker" not in line]
+    assert expected in lines[-1]
 
 
 def note_start(job: int, folder: str) -> int:
