@@ -104,9 +104,7 @@ def method_seconds(config, name: str, tasks: list[Task], warm_up: bool = False) 
         if warm_up:
             evaluation()
             diagnostics()
-        # the median of three: one evaluation counts n * n times, so a slow moment of the
-        # machine during it moved the whole estimate by a third (fine-tune 0.95, then 1.26)
-        total += _seconds(evaluation, 3) * n * n + _seconds(diagnostics, 3) * n * (n + 1) / 2
+        total += _seconds(evaluation) * n * n + _seconds(diagnostics) * n * (n + 1) / 2
     return total
 
 

@@ -57,7 +57,7 @@ def run_experiment(
     jobs = config.jobs()
     tasks = len(curriculum.inputs.tasks)
     each: dict[str, float] = {}  # a job's estimated seconds by method: the longest go first
-    if not resume:
+    if not resume and not config.quick:  # timing a quick run would cost as much as running it
         each = job_seconds(config, curriculum.inputs.tasks)
         estimate = run_seconds(config, each, execution.jobs)
         print(

@@ -444,3 +444,15 @@ def test_a_config_file_gives_the_options_and_flags_override_it(tmp_path, capsys)
         "argument --epochs: -3 is not between 0"
         in refused(capsys, "--config", str(tmp_path / "bad.toml"))[-1]
     )
+
+
+def test_a_run_prints_its_estimate_first_and_a_quick_run_does_not(tmp_path, capsys):
+    """Timing a quick run (over in seconds) would cost as much as running it."""
+    argv = ["--scenario", "crowd_noise_0.1", "--methods", "finetune", "--epochs", "1"]
+    argv += ["--no-record", "--cache", str(tmp_path / "cache")]
+    small = [f"--set=data.splits.{split}=2" for split in ("train", "val", "test")]
+    full = run_here(capsys, *argv, *small, "--out", str(tmp_path / "small"))
+    quick = run_here(capsys, *argv, "--quick", "--out", str(tmp_path / "quick"))
+    assert full.returncode == quick.returncode == 0
+    assert "1 jobs x 1 tasks, 1 at a time: about" in full.stderr
+    assert "(timed on this machine)" not in quick.stderr
