@@ -12,12 +12,14 @@ import pytest
 
 DRIVER = textwrap.dedent(
     """
-    import sys, time
+    import os, sys, time
     from pathlib import Path
     from sim.experiment.backends import run_jobs
 
     def sleeper(job, folder):
-        (Path(folder) / f"{job}.pid").write_text(str(__import__("os").getpid()))
+        written = Path(folder) / f"{job}.tmp"  # renamed when whole: the test reads it at once
+        written.write_text(str(os.getpid()))
+        written.rename(Path(folder) / f"{job}.pid")
         time.sleep(120)
 
     if __name__ == "__main__":
