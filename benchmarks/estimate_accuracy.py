@@ -2,10 +2,10 @@
 
 For each method: the estimate ``sim.run`` prints before it starts (``job_seconds``: a few timed
 training steps of the first two tasks with the method's hooks, one evaluation and one set of
-diagnostics, scaled by the curriculum), then the
-job itself, run in the same process (one torch thread, the domains already in the cache), and
-its CPU seconds of training and evaluation (``result.json``'s ``cpu_seconds``). Prints both and
-their ratio; the issue's target is every ratio within 0.75 to 1.25.
+diagnostics, scaled by the curriculum), then the job itself, run in the same process (one torch
+thread, the domains already in the cache), and its CPU seconds of training and evaluation
+(``result.json``'s ``cpu_seconds``). Prints both and their ratio; the issue's target is every
+ratio within 0.75 to 1.25.
 
     python benchmarks/estimate_accuracy.py [--scenario crowd_noise_0.1..0.3] [--epochs 2]
         [--methods finetune,ewc,...]

@@ -22,21 +22,24 @@ import torch
 from c2inet.batch import batches
 from c2inet.diagnostics import diagnose
 from c2inet.methods.base import Method, TaskContext
-from c2inet.trainer import Task, evaluate, evaluate_all, start_training, train_step
+from c2inet.trainer import (
+    Task,
+    TrainConfig,
+    evaluate,
+    evaluate_all,
+    start_training,
+    train_step,
+)
 
 STEPS = 9  # timed training steps per task, after one to warm up (3 varied by 40 %)
 EPOCH_HOOKS = 2  # epoch hooks timed per task: C2INet fits Eq 8 every second epoch
 
 
-def _seconds(work: Callable[[], object], repeat: int = 1) -> float:
-    """The median time of ``repeat`` calls of ``work``: a moment the machine was busy with
-    something else does not count."""
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        work()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
+def _seconds(work: Callable[[], object]) -> float:
+    """The wall time of one call of ``work``."""
+    start = time.perf_counter()
+    work()
+    return time.perf_counter() - start
 
 
 def training_steps(method: Method, tasks: list[Task], batch_scenes: int) -> list[int]:
@@ -48,7 +51,9 @@ def training_steps(method: Method, tasks: list[Task], batch_scenes: int) -> list
     return [math.ceil(size / batch_scenes) for size in sizes]
 
 
-def task_seconds(method: Method, ctx: TaskContext, train, epochs: int) -> tuple[float, float]:
+def task_seconds(
+    method: Method, ctx: TaskContext, train: TrainConfig, epochs: int
+) -> tuple[float, float]:
     """Train on task ``ctx`` as a job does, briefly: its task hooks, :data:`STEPS` timed steps
     and the first epoch hooks. Returns (seconds a step, seconds of hooks for ``epochs``)."""
     started = time.perf_counter()
@@ -60,7 +65,9 @@ def task_seconds(method: Method, ctx: TaskContext, train, epochs: int) -> tuple[
         _seconds(lambda b=b: train_step(method, ctx, b, train))
         for b in itertools.islice(batches(data, train.batch_scenes, ctx.rng, ctx.device), STEPS + 1)
     ]
-    per_step = statistics.median(times[1:] or times)  # the first step warms up
+    # the median, after a first step that warms up: a moment the machine was busy with something
+    # else does not count
+    per_step = statistics.median(times[1:] or times)
     timed = range(min(epochs, EPOCH_HOOKS))
     if timed:  # the mean epoch hook, for every epoch
         hooks += (
