@@ -82,7 +82,10 @@ def test_a_wheel_in_a_fresh_environment_generates_domains_anywhere(tmp_path, mon
     from this environment (a path file; installing them again would copy 2 GB): CI's own
     install resolves them from scratch, and the test above proves they are declared."""
     monkeypatch.setenv("PIP_CACHE_DIR", str(tmp_path / "pip-cache"))  # nothing written in ~
-    run(sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", tmp_path / "dist", ROOT)
+    # built with this environment's setuptools (declared in the test extra): an isolated build
+    # would install it again first
+    wheel_of = (sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q")
+    run(*wheel_of, "-w", tmp_path / "dist", ROOT)
     (wheel,) = (tmp_path / "dist").glob("c2i_testbed-*.whl")
     names = set(zipfile.ZipFile(wheel).namelist())
     assert "sim/scenarios/crowd_noise.toml" in names
