@@ -8,11 +8,13 @@ trial ever reads a test split or a task the tuning curriculum does not hold. The
 final average point-prediction ADE over the tuning tasks, forgetting included. The first trial of
 every method is its defaults, so tuning never selects worse than the defaults on its objective.
 
-The trials of one round (one per method) run together on the run's backend. The studies live in
-SQLite beside the run (``--storage URL`` for a shared database); the sampler is re-seeded from
-the seed, the method and the number of finished trials before each ask, so a killed tuning
-resumes to the same choices: unfinished trials are failed and asked again, and their jobs
-resume from their own folders.
+The trials of one round run together on the run's backend: one per method, except that a
+method's first round holds all its start-up trials (its defaults and the random draws before TPE
+starts, which no result can change), so a method of 6 trials takes 4 rounds, not 6. The studies
+live in SQLite beside the run (``--storage URL`` for a shared database); the sampler is re-seeded
+from the seed, the method and the trial's index before each ask, so a killed tuning resumes to
+the same choices: unfinished trials are failed and asked again, and their jobs resume from their
+own folders.
 """
 
 from __future__ import annotations
@@ -83,13 +85,31 @@ def validation_inputs(curriculum: Curriculum) -> JobInputs:
     return JobInputs(tasks, [])
 
 
-def _sampler(seed: int, method: str, finished: int, trials: int):
+def startup_trials(trials: int) -> int:
+    """The trials of a method drawn at random (its defaults first) before TPE starts."""
+    return max(1, trials // 2)
+
+
+def _sampler(seed: int, method: str, index: int, trials: int):
     import optuna
 
-    derived = np.random.SeedSequence([seed, zlib.crc32(method.encode()), finished])
+    derived = np.random.SeedSequence([seed, zlib.crc32(method.encode()), index])
     return optuna.samplers.TPESampler(
-        seed=int(derived.generate_state(1)[0]), n_startup_trials=max(1, trials // 2)
+        seed=int(derived.generate_state(1)[0]), n_startup_trials=startup_trials(trials)
     )
+
+
+# ask a method's start-up trials in one round (False: one trial a round, as TPE's own)
+STARTUP_TOGETHER = True
+
+
+def _round_size(finished: int, trials: int) -> int:
+    """How many trials a method asks in the next round, ``finished`` of ``trials`` done: the
+    start-up trials are drawn without reading any result (TPE ignores running trials), so
+    asking them together gives the same settings as asking them one by one."""
+    if STARTUP_TOGETHER and finished < startup_trials(trials):
+        return min(startup_trials(trials), trials) - finished
+    return 1
 
 
 def _defaults(method: str, space: dict[str, Tunable], base: ExperimentConfig) -> dict[str, Any]:
@@ -157,25 +177,26 @@ def run_tuning(
         for method in pending:
             space, count = search_space(method), len(finished(method))
             study = studies[method]
-            study.sampler = _sampler(base.seed, method, count, tune.trials)
             if count == 0 and not study.get_trials(deepcopy=False, states=(TrialState.WAITING,)):
                 study.enqueue_trial(_defaults(method, space, base))  # the defaults come first
-            trial = study.ask({key: _distribution(s) for key, s in space.items()})
-            params = as_settings(method, trial.params)
-            params["train"] = {**params.get("train", {}), **TRIAL_TRAIN}
-            settings = layered(base, params)
-            config = replace(base, methods=(method,), settings=settings)
-            folder = out / "trials" / method / f"trial_{count:03d}"
-            resumed = (folder / "config.json").is_file()  # a trial a killed tuning began
-            label, config, folder, curriculum = plan(
-                f"{method} {count}", config, folder, execution, resumed
-            )
-            curriculum.inputs = validation_inputs(curriculum)
-            asked.append((method, trial))
-            planned.append((label, config, folder, curriculum))
+            for index in range(count, count + _round_size(count, tune.trials)):
+                study.sampler = _sampler(base.seed, method, index, tune.trials)
+                trial = study.ask({key: _distribution(s) for key, s in space.items()})
+                params = as_settings(method, trial.params)
+                params["train"] = {**params.get("train", {}), **TRIAL_TRAIN}
+                settings = layered(base, params)
+                config = replace(base, methods=(method,), settings=settings)
+                folder = out / "trials" / method / f"trial_{index:03d}"
+                resumed = (folder / "config.json").is_file()  # a trial a killed tuning began
+                label, config, folder, curriculum = plan(
+                    f"{method} {index}", config, folder, execution, resumed
+                )
+                curriculum.inputs = validation_inputs(curriculum)
+                asked.append((method, trial))
+                planned.append((label, config, folder, curriculum))
         costs = [trial_seconds(out, method) for method, _ in asked]  # the longest start first
         done = run_together(planned, execution, resume=True, argv=[], costs=costs)
-        for (method, trial), (metrics, _) in zip(asked, done, strict=True):
+        for (method, trial), (metrics, _) in zip(asked, done, strict=True):  # in index order
             value = metrics["methods"][method]["final_ade_k1_per_seed"][0]
             # a diverged trial is the worst there is, not a failure to ask again (same seed,
             # same history: the same settings, for ever)

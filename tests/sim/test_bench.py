@@ -56,6 +56,29 @@ def test_tuning_never_sees_a_test_split_or_a_later_task(tuned, tmp_path):
         assert task.test is original.val and task.test is not original.test
 
 
+def test_start_up_trials_run_in_one_round_and_choose_as_one_at_a_time(tuned, tmp_path, monkeypatch):
+    """Of 4 trials the first 2 (the defaults and a random draw) no result can change: they run
+    in one round, and the trials and the choice are those of one trial a round."""
+    from sim.experiment import tuning
+
+    rounds = []
+
+    def counted(planned, *args, **kwargs):
+        rounds.append(len(planned))
+        return run_together(planned, *args, **kwargs)
+
+    run_together = tuning.run_together
+    monkeypatch.setattr(tuning, "run_together", counted)
+    monkeypatch.setattr(tuning, "STARTUP_TOGETHER", False)
+    tuning_of = bench_of("crowd_noise_0.1,0.2").tuning()
+    alone = run_tuning(tuning_of, tmp_path / "alone", Execution(cache=tmp_path / "cache"))
+    assert rounds == [1, 1, 1, 1] and alone == tuned
+    rounds.clear()
+    monkeypatch.setattr(tuning, "STARTUP_TOGETHER", True)
+    run_tuning(tuning_of, tmp_path / "together", Execution(cache=tmp_path / "cache"))
+    assert rounds == [2, 1, 1]
+
+
 def test_trials_skip_what_their_objective_never_reads_and_the_choice_keeps_it(tmp_path):
     """A trial measures no diagnostics, no validation curves and no other test-time rule for
     C (its objective is the final point-prediction ADE); the chosen settings carry none of it."""
