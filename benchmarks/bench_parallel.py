@@ -9,7 +9,10 @@ the tuning and the evaluation jobs (from their ``result.json``) under each, the 
 allow (two jobs at once slow each other down: the CPU seconds grow), and checks that the two
 leaderboards are identical.
 
-    python benchmarks/bench_parallel.py [--rounds 1] [--epochs 2]
+    python benchmarks/bench_parallel.py [--rounds 1] [--epochs 2] [--trials 3] [--jobs 1,2]
+
+``--trials 6`` (the presets' budget) lets a method's 3 start-up trials share a round; ``--jobs 2``
+alone times one side, e.g. of another checkout, to compare two versions.
 """
 
 from __future__ import annotations
@@ -26,9 +29,9 @@ SCENARIO = "crowd_noise_0.1..0.3"
 METHODS = "finetune,ewc,derpp,c2inet-online"
 
 
-def timed_bench(jobs: int, epochs: int, out: Path, cache: Path) -> float:
+def timed_bench(jobs: int, epochs: int, trials: int, out: Path, cache: Path) -> float:
     command = [sys.executable, "-m", "sim.bench", "--scenario", SCENARIO, "--methods", METHODS]
-    command += ["--trials", "3", "--seeds", "3", "--epochs", str(epochs), "--no-record"]
+    command += ["--trials", str(trials), "--seeds", "3", "--epochs", str(epochs), "--no-record"]
     command += ["--jobs", str(jobs), "--cache", str(cache), "--out", str(out)]
     start = time.perf_counter()
     subprocess.run(command, check=True, capture_output=True)
@@ -51,7 +54,10 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--rounds", type=int, default=1)
     p.add_argument("--epochs", type=int, default=2)
+    p.add_argument("--trials", type=int, default=3)
+    p.add_argument("--jobs", default="1,2", help="the --jobs values timed, in turn")
     args = p.parse_args()
+    sides = [int(j) for j in args.jobs.split(",")]
     with tempfile.TemporaryDirectory() as tmp:
         root, cache = Path(tmp), Path(".cache/domains")
         subprocess.run(  # the domains into the cache
@@ -74,17 +80,23 @@ def main() -> None:
         )
         best: dict[int, float] = {}
         for round_ in range(args.rounds):
-            for jobs in (1, 2):
+            for jobs in sides:
                 out = root / f"{round_}-{jobs}"
-                seconds = timed_bench(jobs, args.epochs, out, cache)
+                seconds = timed_bench(jobs, args.epochs, args.trials, out, cache)
                 best[jobs] = min(best.get(jobs, seconds), seconds)
-                assert ranking(out) == ranking(root / "0-1"), "the leaderboards differ"
-        cpu = {jobs: cpu_seconds(root / f"0-{jobs}") for jobs in (1, 2)}
-        tuning, evaluation = (cpu_seconds(root / "0-1" / part) for part in ("tuning", "evaluation"))
+                assert ranking(out) == ranking(root / f"0-{sides[0]}"), "the leaderboards differ"
+        cpu = {jobs: cpu_seconds(root / f"0-{jobs}") for jobs in sides}
+        first = root / f"0-{sides[0]}"
+        tuning, evaluation = (cpu_seconds(first / part) for part in ("tuning", "evaluation"))
+    jobs_run = 4 * (args.trials + 3)
+    if sides != [1, 2]:
+        for jobs in sides:
+            print(f"reduced benchmark ({jobs_run} jobs), --jobs {jobs}: {best[jobs]:.1f} s wall,")
+            print(f"  job CPU {cpu[jobs]:.1f} s")
+        return
     serial = best[1] - cpu[1]  # start-up, data and outputs: the same for both
-    print(
-        f"{'reduced benchmark (24 jobs)':32s} {'--jobs 1':>10s} {'--jobs 2':>10s} {'speed-up':>9s}"
-    )
+    name = f"reduced benchmark ({jobs_run} jobs)"
+    print(f"{name:32s} {'--jobs 1':>10s} {'--jobs 2':>10s} {'speed-up':>9s}")
     print(f"{'wall':32s} {best[1]:9.1f}s {best[2]:9.1f}s {best[1] / best[2]:8.2f}x")
     print(f"{'job CPU':32s} {cpu[1]:9.1f}s {cpu[2]:9.1f}s {cpu[2] / cpu[1]:8.2f}x")
     print(
