@@ -22,7 +22,7 @@ from torch import nn
 from c2inet.backbones import BACKBONES
 from c2inet.batch import Batch, make_batch, variety_loss
 from c2inet.data import OBS_LEN, Windows
-from c2inet.options import Tunable, require
+from c2inet.options import Tunable, choose, require
 from c2inet.prior import (
     GaussianMixture,
     LearnablePrior,
@@ -89,16 +89,10 @@ class ModelConfig:
             raise ValueError(
                 f"backbone {self.backbone!r} is unknown (known: {', '.join(BACKBONES)})"
             )
-        for name, allowed in (
-            ("c_source", C_SOURCES),
-            ("c_per", ("agent", "scene")),
-            ("decoder_input", DECODER_INPUTS),
-            ("past_from", PAST_INPUTS),
-        ):
-            if getattr(self, name) not in allowed:
-                raise ValueError(
-                    f"{name} {getattr(self, name)!r}: expected one of {', '.join(allowed)}"
-                )
+        choose(self, "c_source", C_SOURCES)
+        choose(self, "c_per", ("agent", "scene"))
+        choose(self, "decoder_input", DECODER_INPUTS)
+        choose(self, "past_from", PAST_INPUTS)
         require(self, 1, "latent_dim", "z_dim", "c_dim", "n_mc")
         require(self, 0, "beta_c", "beta_z", "beta_x", "free_bits_c", "mi_floor_c", "mi_weight")
         require(self, 0, "likelihood_std", open_low=True)

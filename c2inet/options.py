@@ -92,6 +92,13 @@ def require(options: Any, low: float, *names: str, high: float = math.inf, open_
         check_range(name, getattr(options, name), low, high, open_low=open_low)
 
 
+def choose(options: Any, name: str, allowed: tuple[str, ...]) -> None:
+    """Raise InputError unless the field ``name`` of ``options`` is one of ``allowed``."""
+    value = getattr(options, name)
+    if value not in allowed:
+        raise InputError(f"{name} {value!r}: expected one of {', '.join(allowed)}")
+
+
 @dataclass(frozen=True)
 class Tunable:
     """A range a tuner may search for one option: [low, high], on a log scale if ``log``,

@@ -12,9 +12,11 @@ from dataclasses import dataclass
 
 import torch
 
-from c2inet.options import require
+from c2inet.eq8 import fit_closed_form
+from c2inet.options import choose, require
 
 LOG_2PI = math.log(2 * math.pi)
+FITS = ("autograd", "closed")  # how Eq 8's component fit takes its gradient
 
 
 def gaussian_log_prob(x: torch.Tensor, mean: torch.Tensor, logvar: torch.Tensor) -> torch.Tensor:
@@ -150,6 +152,7 @@ class QueueConfig:
     fit_steps: int = 200  # Adam steps of the Eq 8 component fit
     fit_samples: int = 64
     fit_lr: float = 3e-2
+    fit: str = "autograd"  # Eq 8's gradient: "autograd", or "closed" form (c2inet/eq8.py)
     target_samples: int = 1000
 
     def __post_init__(self):
@@ -157,6 +160,20 @@ class QueueConfig:
         require(self, 1, "target_samples")
         require(self, 0, "distill_weight", "lambda_div")
         require(self, 0, "fit_lr", high=10, open_low=True)
+        choose(self, "fit", FITS)
+
+
+def eq8_objective(mean, logvar, noise, target, current, lambda_div: float) -> torch.Tensor:
+    """Eq 8's objective J at the samples mean + e^(logvar/2) * noise (see
+    :meth:`PriorQueue.fit_component`), differentiable in ``mean`` and ``logvar``."""
+    c = gaussian_sample(mean, logvar, noise)
+    entropy = 0.5 * (1 + LOG_2PI + logvar).sum()
+    log_t, log_m = target.log_prob(c), current.log_prob(c)
+    objective = (2 * log_t - torch.logaddexp(log_t, log_m)).mean() + entropy
+    if lambda_div:
+        skl = symmetric_kl(mean, logvar, current.means, current.logvars).mean()
+        objective = objective + lambda_div * skl
+    return objective
 
 
 def bounded_task_mass(weights: torch.Tensor, owners: list[int], rounds: int = 50) -> torch.Tensor:
@@ -269,18 +286,18 @@ class PriorQueue:
         current = (self.mixture if current is None else current).detached()
         if start is None:
             start = target.sample(1, generator)[0], target.logvars.mean(0)
+        steps = cfg.fit_steps if steps is None else steps
+        lambda_div = cfg.lambda_div if cfg.divergence else 0.0
+        if cfg.fit == "closed":
+            return fit_closed_form(
+                *start, target, current, lambda_div, steps, cfg.fit_samples, cfg.fit_lr, generator
+            )
         mean = start[0].clone().requires_grad_(True)
         logvar = start[1].clone().requires_grad_(True)
         optimiser = torch.optim.Adam([mean, logvar], lr=cfg.fit_lr)
-        for _ in range(cfg.fit_steps if steps is None else steps):
+        for _ in range(steps):
             noise = torch.randn(cfg.fit_samples, self.dim, generator=generator, device=mean.device)
-            c = gaussian_sample(mean, logvar, noise)
-            entropy = 0.5 * (1 + LOG_2PI + logvar).sum()
-            log_t, log_m = target.log_prob(c), current.log_prob(c)
-            objective = (2 * log_t - torch.logaddexp(log_t, log_m)).mean() + entropy
-            if cfg.divergence:
-                skl = symmetric_kl(mean, logvar, current.means, current.logvars).mean()
-                objective = objective + cfg.lambda_div * skl
+            objective = eq8_objective(mean, logvar, noise, target, current, lambda_div)
             optimiser.zero_grad()
             (-objective).backward()
             optimiser.step()

@@ -22,9 +22,8 @@ import numpy as np
 import torch
 
 from c2inet.batch import Batch, make_batch
-from c2inet.errors import InputError
 from c2inet.methods.base import Method, TaskContext
-from c2inet.options import Tunable, require
+from c2inet.options import Tunable, choose, require
 
 RISKS = ("irm", "vrex")
 
@@ -36,8 +35,7 @@ class InvariantOptions:
     environments: int = 2  # groups of scenes by motion scale
 
     def __post_init__(self):
-        if self.risk not in RISKS:
-            raise InputError(f"risk {self.risk!r}: expected one of {', '.join(RISKS)}")
+        choose(self, "risk", RISKS)
         require(self, 0, "weight")
         require(self, 2, "environments", high=100)
 
