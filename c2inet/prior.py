@@ -152,7 +152,7 @@ class QueueConfig:
     fit_steps: int = 200  # Adam steps of the Eq 8 component fit
     fit_samples: int = 64
     fit_lr: float = 3e-2
-    fit: str = "autograd"  # Eq 8's gradient: "autograd", or "closed" form (c2inet/eq8.py)
+    fit: str = "closed"  # Eq 8's gradient in closed form (c2inet/eq8.py), or by "autograd"
     target_samples: int = 1000
 
     def __post_init__(self):

@@ -108,7 +108,7 @@ def _round_size(finished: int, trials: int) -> int:
     start-up trials are drawn without reading any result (TPE ignores running trials), so
     asking them together gives the same settings as asking them one by one."""
     if STARTUP_TOGETHER and finished < startup_trials(trials):
-        return min(startup_trials(trials), trials) - finished
+        return startup_trials(trials) - finished
     return 1
 
 
