@@ -35,7 +35,7 @@ from c2inet.options import Tunable
 from c2inet.trainer import TRAIN_SPACE, Task
 from sim.experiment.config import Execution, ExperimentConfig
 from sim.experiment.curriculum import Curriculum, JobInputs
-from sim.experiment.sweep import layered, plan, run_together
+from sim.experiment.sweep import Planned, layered, plan, run_together
 
 HOLDOUT = 0.2  # share of a domain's training scenes held out where it has no validation split
 
@@ -172,6 +172,19 @@ def run_tuning(
     def finished(method: str) -> list:
         return studies[method].get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
 
+    def plan_trial(method: str, index: int, params: dict[str, Any]) -> Planned:
+        """The experiment of one trial, in its folder, on the validation splits."""
+        settings = as_settings(method, params)
+        settings["train"] = {**settings.get("train", {}), **TRIAL_TRAIN}
+        config = replace(base, methods=(method,), settings=layered(base, settings))
+        folder = out / "trials" / method / f"trial_{index:03d}"
+        resumed = (folder / "config.json").is_file()  # a trial a killed tuning began
+        label, config, folder, curriculum = plan(
+            f"{method} {index}", config, folder, execution, resumed
+        )
+        curriculum.inputs = validation_inputs(curriculum)
+        return label, config, folder, curriculum
+
     while pending := [m for m in tuned if len(finished(m)) < tune.trials]:
         asked, planned = [], []
         for method in pending:
@@ -182,18 +195,8 @@ def run_tuning(
             for index in range(count, count + _round_size(count, tune.trials)):
                 study.sampler = _sampler(base.seed, method, index, tune.trials)
                 trial = study.ask({key: _distribution(s) for key, s in space.items()})
-                params = as_settings(method, trial.params)
-                params["train"] = {**params.get("train", {}), **TRIAL_TRAIN}
-                settings = layered(base, params)
-                config = replace(base, methods=(method,), settings=settings)
-                folder = out / "trials" / method / f"trial_{index:03d}"
-                resumed = (folder / "config.json").is_file()  # a trial a killed tuning began
-                label, config, folder, curriculum = plan(
-                    f"{method} {index}", config, folder, execution, resumed
-                )
-                curriculum.inputs = validation_inputs(curriculum)
                 asked.append((method, trial))
-                planned.append((label, config, folder, curriculum))
+                planned.append(plan_trial(method, index, trial.params))
         costs = [trial_seconds(out, method) for method, _ in asked]  # the longest start first
         done = run_together(planned, execution, resume=True, argv=[], costs=costs)
         for (method, trial), (metrics, _) in zip(asked, done, strict=True):  # in index order
