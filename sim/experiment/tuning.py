@@ -99,15 +99,11 @@ def _sampler(seed: int, method: str, index: int, trials: int):
     )
 
 
-# ask a method's start-up trials in one round (False: one trial a round, as TPE's own)
-STARTUP_TOGETHER = True
-
-
 def _round_size(finished: int, trials: int) -> int:
     """How many trials a method asks in the next round, ``finished`` of ``trials`` done: the
     start-up trials are drawn without reading any result (TPE ignores running trials), so
     asking them together gives the same settings as asking them one by one."""
-    if STARTUP_TOGETHER and finished < startup_trials(trials):
+    if finished < startup_trials(trials):
         return startup_trials(trials) - finished
     return 1
 

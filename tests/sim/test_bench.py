@@ -69,12 +69,13 @@ def test_start_up_trials_run_in_one_round_and_choose_as_one_at_a_time(tuned, tmp
 
     run_together = tuning.run_together
     monkeypatch.setattr(tuning, "run_together", counted)
-    monkeypatch.setattr(tuning, "STARTUP_TOGETHER", False)
+    monkeypatch.setattr(tuning, "_round_size", lambda finished, trials: 1)  # one at a time
     tuning_of = bench_of("crowd_noise_0.1,0.2").tuning()
     alone = run_tuning(tuning_of, tmp_path / "alone", Execution(cache=tmp_path / "cache"))
     assert rounds == [1, 1, 1, 1] and alone == tuned
     rounds.clear()
-    monkeypatch.setattr(tuning, "STARTUP_TOGETHER", True)
+    monkeypatch.undo()  # the real rounds, still counted
+    monkeypatch.setattr(tuning, "run_together", counted)
     run_tuning(tuning_of, tmp_path / "together", Execution(cache=tmp_path / "cache"))
     assert rounds == [2, 1, 1]
 
