@@ -67,22 +67,34 @@ class DERPP(Method):
         ctx.add_loss("replay", self.options.beta * ctx.model.loss(batch, ctx.output.shape[1]).loss)
 
     def _offer(self, ctx: TaskContext) -> None:
-        """Reservoir sampling of the step's scenes with their current outputs."""
+        """Reservoir sampling of the step's scenes with their current outputs. The places are
+        drawn first and the outputs computed only when a scene is kept: once the reservoir is
+        full, most steps keep none (``point`` draws no random numbers, so the run is the same)."""
         batch = ctx.batch
-        with torch.no_grad():
-            outputs = ctx.model.point(batch)
-        positions = torch.cat([batch.obs, batch.fut]).transpose(0, 1)
         bounds = batch.scene_start.tolist()
+        kept = []  # (first agent, last agent, reservoir slot) of each scene kept, in order
+        filled = len(self.scenes)
         for first, last in zip(bounds[:-1], bounds[1:], strict=True):
             self.seen += 1
-            entry = (positions[first:last].clone(), outputs[:, first:last].clone())
-            if len(self.scenes) < self.options.buffer:
-                self.scenes.append(entry[0])
-                self.outputs.append(entry[1])
+            if filled < self.options.buffer:
+                kept.append((first, last, filled))
+                filled += 1
                 continue
             slot = int(ctx.rng.integers(self.seen))
             if slot < self.options.buffer:
-                self.scenes[slot], self.outputs[slot] = entry
+                kept.append((first, last, slot))
+        if not kept:
+            return
+        with torch.no_grad():
+            outputs = ctx.model.point(batch)
+        positions = torch.cat([batch.obs, batch.fut]).transpose(0, 1)
+        for first, last, slot in kept:
+            scene, output = positions[first:last].clone(), outputs[:, first:last].clone()
+            if slot == len(self.scenes):
+                self.scenes.append(scene)
+                self.outputs.append(output)
+            else:
+                self.scenes[slot], self.outputs[slot] = scene, output
 
     def before_backward(self, ctx: TaskContext) -> None:
         if self.scenes:

@@ -4,6 +4,8 @@
 checker: switching them off changes the numbers.)
 """
 
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
@@ -150,6 +152,26 @@ def test_derpp_reservoir_keeps_its_size_and_outputs_as_stored():
         o.shape == (12, len(s), 2) for s, o in zip(method.scenes, method.outputs, strict=True)
     )
     assert result.summaries[-1]["buffer_scenes"] == 10
+
+
+def test_derpp_computes_outputs_only_at_steps_that_keep_a_scene(monkeypatch):
+    """Once the reservoir is full most steps keep no scene and so compute no outputs (the
+    calls without gradients are the offers'; the replay's carry gradients)."""
+    from c2inet.model import Predictor
+
+    offers, point = [], Predictor.point
+
+    def counted(self, batch):
+        if not torch.is_grad_enabled():
+            offers.append(len(batch.scene_start) - 1)
+        return point(self, batch)
+
+    monkeypatch.setattr(Predictor, "point", counted)
+    method = get_method("derpp")(ModelConfig(), {"buffer": 2})
+    config = dataclasses.replace(CONFIG, batch_scenes=1)  # a step per scene: 32 offers
+    ContinualTrainer(method, turning_tasks(), config).run()
+    assert method.seen == 32 and len(method.scenes) == 2 and offers[:2] == [1, 1]
+    assert len(offers) <= 12  # 2 filling, then about 2/n of the n-th scene's offers kept
 
 
 def test_lwf_holds_the_model_to_its_previous_predictions():
