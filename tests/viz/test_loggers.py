@@ -6,8 +6,6 @@ import pytest
 
 from viz.loggers import MLflowLogger, WandbLogger, flat_params, prepare_tracking
 
-MlflowClient = pytest.importorskip("mlflow.tracking").MlflowClient
-
 
 def test_flat_params_name_each_setting_by_its_scope():
     tree = {"model": {"c_dim": 8, "sizes": [1, 2]}, "train": {"lr": 0.003}, "none": None}
@@ -25,6 +23,7 @@ def test_mlflow_keeps_every_parameter_and_metric_in_requests_a_server_takes(
     """A tracking server takes 100 parameters and 1,000 metrics a request (the local store
     takes more, so each request is watched): a job with more loses none, and a resumed job's
     earlier run is replaced, not doubled."""
+    MlflowClient = pytest.importorskip("mlflow.tracking").MlflowClient  # 3 s: only where used
     run = tmp_path / "runs" / "20261202-000000"
     job = run / "jobs" / "finetune" / "seed_0"
     job.mkdir(parents=True)
