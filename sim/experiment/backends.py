@@ -42,7 +42,10 @@ PRELOAD = ["torch", "torch._dynamo", "c2inet.trainer"]
 
 def _watch_driver(driver: int) -> None:
     """Kill this worker the moment the driver ends, however it ends (SIGKILL, out of memory): a
-    thread waits on the driver's process file descriptor (Linux), else polls it each second."""
+    thread waits on the driver's process file descriptor (Linux), else polls it each second
+    (POSIX; on Windows, where ``os.kill`` terminates, nothing is watched)."""
+    if os.name != "posix":
+        return
     try:
         handle = os.pidfd_open(driver) if hasattr(os, "pidfd_open") else None
         os.kill(driver, 0)
@@ -173,8 +176,11 @@ def _workers(processes: int) -> ProcessPoolExecutor:
     if _pool is not None and _pool._max_workers != processes:  # no public way to ask
         _stop_workers()
     if _pool is None:
-        context = multiprocessing.get_context("forkserver")  # torch and a plain fork do not mix
-        context.set_forkserver_preload(PRELOAD)
+        # torch and a plain fork do not mix; Windows has no fork server, only spawn
+        forkserver = "forkserver" in multiprocessing.get_all_start_methods()
+        context = multiprocessing.get_context("forkserver" if forkserver else "spawn")
+        if forkserver:
+            context.set_forkserver_preload(PRELOAD)
         _pool = ProcessPoolExecutor(processes, context, _start_worker, (os.getpid(),))
     return _pool
 
