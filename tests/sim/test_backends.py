@@ -166,3 +166,19 @@ def test_kept_workers_serve_every_batch_until_one_fails():
     assert not any(alive(pid) for pid in kept)  # stopped at the block's end
     alone = set(run_jobs(worker_pid, [0, 1], processes=2))
     assert not any(alive(pid) for pid in alone) and not alone & kept
+
+
+def preloaded(job: int) -> tuple[bool, int]:
+    """Whether this worker had torch._dynamo before its job (nothing the job's own imports
+    bring: only the optimiser imports it), and the worker's parent."""
+    return "torch._dynamo" in sys.modules, os.getppid()
+
+
+def test_workers_fork_from_a_server_that_imported_torch_once():
+    """Workers do not each import torch and torch._dynamo (4 to 5 CPU-s a worker): they fork
+    from Python's fork server, which imported them, so their parent is not the driver."""
+    from sim.experiment.backends import run_jobs
+
+    results = run_jobs(preloaded, [0, 1], processes=2)
+    assert all(loaded for loaded, _ in results)
+    assert all(parent != os.getpid() for _, parent in results)
