@@ -13,6 +13,7 @@ from c2inet.prior import (
     gaussian_log_prob,
     mix,
     moment_match,
+    pairwise_log_prob,
     responsibilities,
     symmetric_kl,
 )
@@ -42,6 +43,26 @@ def test_log_density_matches_a_brute_force_sum():
 def test_log_density_is_finite_far_from_every_component():
     m = random_mixture()
     assert torch.isfinite(m.log_prob(torch.full((2, 3), 1e3))).all()
+
+
+@pytest.mark.parametrize("spread", [1.0, 300.0])
+def test_pairwise_log_density_is_the_broadcast_one_with_its_gradient(spread):
+    """The matrix-product form gives every point's log density under every Gaussian as the
+    broadcast one does in float64, gradient included, also for sharp components far from 0
+    (spread 300, std 0.02), where float32 sums of its terms would cancel to within a nat."""
+    g = torch.Generator().manual_seed(1)
+    means = (torch.randn(40, 4, generator=g) * spread).requires_grad_()
+    logvars = torch.full((40, 4), -8.0).requires_grad_()
+    x = (means.detach()[None] + 0.02 * torch.randn(3, 40, 4, generator=g)).requires_grad_()
+    weight = torch.randn(3, 40, 40, generator=g, dtype=torch.float64)
+    fast = pairwise_log_prob(x, means, logvars)
+    exact = [t.detach().double().requires_grad_() for t in (x, means, logvars)]
+    slow = gaussian_log_prob(exact[0].unsqueeze(-2), *exact[1:])
+    assert fast.dtype == torch.float32 and fast.shape == slow.shape == (3, 40, 40)
+    torch.testing.assert_close(fast.double(), slow, rtol=1e-6, atol=1e-4)
+    gradients = torch.autograd.grad((fast * weight).sum(), [x, means, logvars])
+    for a, b in zip(gradients, torch.autograd.grad((slow * weight).sum(), exact), strict=True):
+        torch.testing.assert_close(a.double(), b, rtol=1e-5, atol=1e-3)
 
 
 def test_weights_sum_to_one_after_adds_and_removes():
