@@ -41,9 +41,17 @@ def alive(pid: int) -> bool:
 
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP, signal.SIGKILL])
 def test_workers_die_with_their_driver(tmp_path, signum):
+    """Within 30 s of their driver's end; a driver that can catch the signal also removes its
+    temporary folder (one killed by SIGKILL cannot: its folder is left in the test's own)."""
     script = tmp_path / "driver.py"
     script.write_text(DRIVER)
-    driver = subprocess.Popen([sys.executable, str(script), str(tmp_path)], cwd=tmp_path)
+    temporary = tmp_path / "tmp"
+    temporary.mkdir()
+    driver = subprocess.Popen(
+        [sys.executable, str(script), str(tmp_path)],
+        cwd=tmp_path,
+        env={**os.environ, "TMPDIR": str(temporary)},
+    )
     deadline = time.monotonic() + 120
     while len(list(tmp_path.glob("*.pid"))) < 2:  # both workers are in their jobs
         assert time.monotonic() < deadline and driver.poll() is None
@@ -55,6 +63,8 @@ def test_workers_die_with_their_driver(tmp_path, signum):
     while any(alive(pid) for pid in workers) and time.monotonic() < deadline:
         time.sleep(0.2)
     assert not any(alive(pid) for pid in workers)
+    if signum != signal.SIGKILL:  # a killed driver cannot clean up: its folder stays in tmp_path
+        assert not list(temporary.glob("c2i-jobs-*"))
 
 
 @pytest.mark.parametrize(
