@@ -8,8 +8,9 @@ with r its responsibilities, and the Gaussian densities of all samples are matri
 fits draw the same noise step for step, so they differ by float rounding only
 (``tests/c2inet/test_eq8.py``); ``benchmarks/eq8_fit.py`` times them: one fit 5 to 7 times
 cheaper, a C2INet-online job 1.15 to 1.28 times, with the same accuracy over 3 seeds on
-crowd_radius and crowd_noise. Runs before this option (December 2026) used autograd:
-``c2inet-online.fit=autograd`` reproduces them bit for bit.
+crowd_radius and crowd_noise. Runs before this option (December 2026) used autograd; the
+commit in a run's card reproduces it bit for bit (the mixture densities have since become matrix
+products, the same to float rounding).
 """
 
 from __future__ import annotations

@@ -155,6 +155,17 @@ class Predictor(nn.Module):
         cond = torch.cat([context, context.new_zeros(len(context), self.config.latent_dim)], -1)
         return self.decode(batch, cond[None])[:, 0]
 
+    def loss_and_point(self, batch: Batch, k_train: int = 1) -> tuple[LossOutput, torch.Tensor]:
+        """:meth:`loss` and :meth:`point` of one batch (replay with stored outputs, DER++) from
+        one encoder call and one decoder call: the noise-free condition rides as one sample
+        more. The same noise is drawn as by :meth:`loss`."""
+        context = self.context(batch)
+        still = torch.cat([context, context.new_zeros(len(context), self.config.latent_dim)], -1)
+        cond = torch.cat([self._context_with_noise(context, k_train), still[None]])
+        pred = self.decode(batch, cond)  # (12, k_train + 1, N, 2)
+        loss = variety_loss(self.nll(batch, pred[:, :k_train]), batch)
+        return LossOutput(loss, {"nll": loss.item()}, pred[:, :k_train]), pred[:, k_train]
+
     @torch.no_grad()
     def predict(self, batch: Batch, samples: int) -> torch.Tensor:
         """K sampled futures as absolute positions in metres, (K, 12, N, 2)."""
@@ -450,6 +461,10 @@ class C2INetModel(Predictor):
         post = self.posteriors(batch)
         z, c, _, _ = self.latents(batch, post, 1, "posterior_mean", z_mean=True)
         return self.decode(batch, self.conditions(batch, post, z, c))[:, 0]
+
+    def loss_and_point(self, batch: Batch, k_train: int = 1) -> tuple[LossOutput, torch.Tensor]:
+        """Eq 10's loss and the posterior-mean prediction, each by its own pass."""
+        return self.loss(batch, k_train), self.point(batch)
 
     @torch.no_grad()
     def predict(

@@ -5,8 +5,9 @@ A reservoir of ``buffer`` scenes (each scene seen has the same chance to be in i
 boundaries: no task labels needed) keeps every scene's noise-free prediction (``point``, the
 regressor's "logits") from when it was stored. Each step adds ``alpha`` times the squared drift
 from those stored outputs and ``beta`` times the task loss on a batch of ``replay_batch``
-reservoir scenes (one batch for both terms, where Mammoth draws two: half the cost), then offers
-the step's scenes to the reservoir. Hook: ``before_backward``. Example: ``--methods derpp``
+reservoir scenes (one batch for both terms, where Mammoth draws two, and one forward pass for
+both: ``loss_and_point``), then offers the step's scenes to the reservoir. Hook:
+``before_backward``. Example: ``--methods derpp``
 """
 
 from __future__ import annotations
@@ -61,10 +62,11 @@ class DERPP(Method):
         windows = Windows(torch.cat(parts).cpu().numpy(), starts, ctx.train.obs_len)
         batch = make_batch(windows, device=ctx.device)
         stored = torch.cat([self.outputs[i] for i in chosen], dim=1)
-        drift = ((ctx.model.point(batch) - stored) ** 2).sum(dim=(0, 2))
+        replayed, point = ctx.model.loss_and_point(batch, ctx.output.shape[1])
+        drift = ((point - stored) ** 2).sum(dim=(0, 2))
         drift = batch.per_scene_mean(drift).mean() / (2 * self.model_config.likelihood_std**2)
         ctx.add_loss("replay_outputs", self.options.alpha * drift)
-        ctx.add_loss("replay", self.options.beta * ctx.model.loss(batch, ctx.output.shape[1]).loss)
+        ctx.add_loss("replay", self.options.beta * replayed.loss)
 
     def _offer(self, ctx: TaskContext) -> None:
         """Reservoir sampling of the step's scenes with their current outputs. The places are

@@ -174,6 +174,44 @@ def test_derpp_computes_outputs_only_at_steps_that_keep_a_scene(monkeypatch):
     assert len(offers) <= 12  # 2 filling, then about 2/n of the n-th scene's offers kept
 
 
+def test_one_pass_gives_the_loss_and_the_point_of_separate_passes():
+    """``loss_and_point`` (DER++'s replay) draws the same noise as ``loss`` and gives what the
+    two calls give, gradients included, from one encoder call and one decoder call."""
+    from c2inet.model import Predictor
+
+    torch.manual_seed(0)
+    model, batch = Predictor(ModelConfig()), make_batch(turners(0.3, 4, 0))
+    torch.manual_seed(1)
+    (fused, point) = model.loss_and_point(batch, 3)
+    fused_grads = torch.autograd.grad(fused.loss + point.square().sum(), model.parameters())
+    torch.manual_seed(1)
+    apart = model.loss(batch, 3)
+    torch.testing.assert_close(fused.output, apart.output, rtol=1e-5, atol=1e-6)
+    torch.testing.assert_close(point, model.point(batch), rtol=1e-5, atol=1e-6)
+    grads = torch.autograd.grad(apart.loss + model.point(batch).square().sum(), model.parameters())
+    for a, b in zip(fused_grads, grads, strict=True):
+        torch.testing.assert_close(a, b, rtol=1e-4, atol=1e-5)
+
+
+def test_derpp_replays_its_batch_through_one_encoder_call_a_step(monkeypatch):
+    """Each step encodes its own batch and, once the reservoir holds scenes, the replayed batch:
+    two encoder calls with gradients a step, not three (one for the outputs' term, one for the
+    replayed loss)."""
+    from c2inet.model import Predictor
+
+    encoded, context = [], Predictor.context
+
+    def counted(self, batch):
+        encoded.append(torch.is_grad_enabled())
+        return context(self, batch)
+
+    monkeypatch.setattr(Predictor, "context", counted)
+    method = get_method("derpp")(ModelConfig(), {"buffer": 4})
+    config = dataclasses.replace(CONFIG, batch_scenes=1)  # a step per scene
+    ContinualTrainer(method, turning_tasks(), config).run()
+    assert encoded.count(True) == 2 * method.seen - 1  # the first step has nothing to replay
+
+
 def test_lwf_holds_the_model_to_its_previous_predictions():
     """After a second task turning the other way, the distilled model predicts the first task's
     scenes closer to how it did after the first task than undistilled fine-tuning does."""
