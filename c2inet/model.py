@@ -151,17 +151,19 @@ class Predictor(nn.Module):
     def point(self, batch: Batch) -> torch.Tensor:
         """The noise-free prediction, normalised displacements (12, N, 2), differentiable: what
         distillation methods (LwF, DER++) hold the model to."""
-        context = self.context(batch)
-        cond = torch.cat([context, context.new_zeros(len(context), self.config.latent_dim)], -1)
-        return self.decode(batch, cond[None])[:, 0]
+        return self.decode(batch, self._noise_free(self.context(batch))[None])[:, 0]
+
+    def _noise_free(self, context: torch.Tensor) -> torch.Tensor:
+        return torch.cat([context, context.new_zeros(len(context), self.config.latent_dim)], -1)
 
     def loss_and_point(self, batch: Batch, k_train: int = 1) -> tuple[LossOutput, torch.Tensor]:
         """:meth:`loss` and :meth:`point` of one batch (replay with stored outputs, DER++) from
         one encoder call and one decoder call: the noise-free condition rides as one sample
         more. The same noise is drawn as by :meth:`loss`."""
         context = self.context(batch)
-        still = torch.cat([context, context.new_zeros(len(context), self.config.latent_dim)], -1)
-        cond = torch.cat([self._context_with_noise(context, k_train), still[None]])
+        cond = torch.cat(
+            [self._context_with_noise(context, k_train), self._noise_free(context)[None]]
+        )
         pred = self.decode(batch, cond)  # (12, k_train + 1, N, 2)
         loss = variety_loss(self.nll(batch, pred[:, :k_train]), batch)
         return LossOutput(loss, {"nll": loss.item()}, pred[:, :k_train]), pred[:, k_train]

@@ -4,6 +4,7 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import textwrap
 import time
 from pathlib import Path
@@ -42,29 +43,29 @@ def alive(pid: int) -> bool:
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP, signal.SIGKILL])
 def test_workers_die_with_their_driver(tmp_path, signum):
     """Within 30 s of their driver's end; a driver that can catch the signal also removes its
-    temporary folder (one killed by SIGKILL cannot: its folder is left in the test's own)."""
+    temporary folder (one killed by SIGKILL cannot: its folder goes with the test's own)."""
     script = tmp_path / "driver.py"
     script.write_text(DRIVER)
-    temporary = tmp_path / "tmp"
-    temporary.mkdir()
-    driver = subprocess.Popen(
-        [sys.executable, str(script), str(tmp_path)],
-        cwd=tmp_path,
-        env={**os.environ, "TMPDIR": str(temporary)},
-    )
-    deadline = time.monotonic() + 120
-    while len(list(tmp_path.glob("*.pid"))) < 2:  # both workers are in their jobs
-        assert time.monotonic() < deadline and driver.poll() is None
-        time.sleep(0.2)
-    workers = [int(p.read_text()) for p in tmp_path.glob("*.pid")]
-    driver.send_signal(signum)
-    driver.wait(timeout=60)
-    deadline = time.monotonic() + 30
-    while any(alive(pid) for pid in workers) and time.monotonic() < deadline:
-        time.sleep(0.2)
-    assert not any(alive(pid) for pid in workers)
-    if signum != signal.SIGKILL:  # a killed driver cannot clean up: its folder stays in tmp_path
-        assert not list(temporary.glob("c2i-jobs-*"))
+    # the driver's temporary folders, short: its fork server's socket lies there (108 bytes)
+    with tempfile.TemporaryDirectory(prefix="c2i-test-") as temporary:
+        driver = subprocess.Popen(
+            [sys.executable, str(script), str(tmp_path)],
+            cwd=tmp_path,
+            env={**os.environ, "TMPDIR": temporary},
+        )
+        deadline = time.monotonic() + 120
+        while len(list(tmp_path.glob("*.pid"))) < 2:  # both workers are in their jobs
+            assert time.monotonic() < deadline and driver.poll() is None
+            time.sleep(0.2)
+        workers = [int(p.read_text()) for p in tmp_path.glob("*.pid")]
+        driver.send_signal(signum)
+        driver.wait(timeout=60)
+        deadline = time.monotonic() + 30
+        while any(alive(pid) for pid in workers) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert not any(alive(pid) for pid in workers)
+        if signum != signal.SIGKILL:
+            assert not list(Path(temporary).glob("c2i-jobs-*"))
 
 
 @pytest.mark.parametrize(
