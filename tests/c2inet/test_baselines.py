@@ -155,8 +155,9 @@ def test_derpp_reservoir_keeps_its_size_and_outputs_as_stored():
 
 
 def test_derpp_computes_outputs_only_at_steps_that_keep_a_scene(monkeypatch):
-    """Once the reservoir is full most steps keep no scene and so compute no outputs (the
-    calls without gradients are the offers'; the replay's carry gradients)."""
+    """Once the reservoir is full most steps keep no scene and so compute no outputs (every
+    ``point`` call without gradients is an offer's; the replay's outputs come from
+    ``loss_and_point``)."""
     from c2inet.model import Predictor
 
     offers, point = [], Predictor.point
@@ -182,7 +183,7 @@ def test_one_pass_gives_the_loss_and_the_point_of_separate_passes():
     torch.manual_seed(0)
     model, batch = Predictor(ModelConfig()), make_batch(turners(0.3, 4, 0))
     torch.manual_seed(1)
-    (fused, point) = model.loss_and_point(batch, 3)
+    fused, point = model.loss_and_point(batch, 3)
     fused_grads = torch.autograd.grad(fused.loss + point.square().sum(), model.parameters())
     torch.manual_seed(1)
     apart = model.loss(batch, 3)
