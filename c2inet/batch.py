@@ -75,6 +75,23 @@ class Batch:
     def unpad(self, padded: torch.Tensor) -> torch.Tensor:
         return padded[..., self.scene_of, self.slot_of, :]
 
+    @staticmethod
+    def concat(parts: list[Batch]) -> Batch:
+        """One batch of the scenes of ``parts``, in order: one forward pass where a method adds
+        scenes of its own (DER++'s replay). Scenes stay apart: agents meet only their own."""
+        offsets = np.cumsum([0] + [p.obs.shape[1] for p in parts[:-1]])
+        counts = np.cumsum([0] + [p.num_scenes for p in parts[:-1]])
+        starts = [parts[0].scene_start[:1]]
+        starts += [p.scene_start[1:] + int(o) for p, o in zip(parts, offsets, strict=True)]
+        return Batch(
+            obs=torch.cat([p.obs for p in parts], dim=1),
+            fut=torch.cat([p.fut for p in parts], dim=1),
+            scene_start=torch.cat(starts),
+            scene_of=torch.cat([p.scene_of + int(c) for p, c in zip(parts, counts, strict=True)]),
+            slot_of=torch.cat([p.slot_of for p in parts]),
+            max_agents=max(p.max_agents for p in parts),
+        )
+
 
 def make_batch(
     windows: Windows, scenes: np.ndarray | None = None, device: torch.device | str = "cpu"

@@ -33,6 +33,7 @@ from c2inet.trainer import TRAIN_SPACE, ContinualTrainer, Result, Task, TrainCon
 HOOKS = (
     "before_task",
     "training_windows",
+    "step_loss",
     "before_backward",
     "after_backward",
     "after_step",

@@ -22,6 +22,7 @@ from torch import nn
 from c2inet.backbones import BACKBONES
 from c2inet.batch import Batch, make_batch, variety_loss
 from c2inet.data import OBS_LEN, Windows
+from c2inet.device import model_device
 from c2inet.options import Tunable, choose, require
 from c2inet.prior import (
     GaussianMixture,
@@ -130,10 +131,12 @@ class Predictor(nn.Module):
         """Normalised future displacements (12, S, N, 2) from conditions (S, N, D)."""
         return self.backbone.decode(cond, batch.obs_rel[-1] / batch.scale)
 
+    def noise(self, samples: int, agents: int) -> torch.Tensor:
+        """The N(0, I) part of ``samples`` conditions of ``agents`` agents, (S, N, latent)."""
+        return torch.randn(samples, agents, self.config.latent_dim, device=model_device(self))
+
     def _context_with_noise(self, context: torch.Tensor, samples: int) -> torch.Tensor:
-        noise = torch.randn(
-            samples, context.shape[0], self.config.latent_dim, device=context.device
-        )
+        noise = self.noise(samples, context.shape[0])
         return torch.cat([context.expand(samples, *context.shape), noise], -1)
 
     def nll(self, batch: Batch, pred_rel: torch.Tensor) -> torch.Tensor:
@@ -156,17 +159,24 @@ class Predictor(nn.Module):
     def _noise_free(self, context: torch.Tensor) -> torch.Tensor:
         return torch.cat([context, context.new_zeros(len(context), self.config.latent_dim)], -1)
 
-    def loss_and_point(self, batch: Batch, k_train: int = 1) -> tuple[LossOutput, torch.Tensor]:
-        """:meth:`loss` and :meth:`point` of one batch (replay with stored outputs, DER++) from
-        one encoder call and one decoder call: the noise-free condition rides as one sample
-        more. The same noise is drawn as by :meth:`loss`."""
+    def samples_and_point(
+        self, batch: Batch, noise: torch.Tensor, point_of: slice
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Samples (12, S, n, 2) of the batch's first n agents from ``noise`` (S, n, latent), as
+        :meth:`loss` draws them, and the noise-free prediction (12, m, 2) of the agents
+        ``point_of``, as :meth:`point` gives it, from one encoder call and one decoder call:
+        both ride as rows of one call (the decoder reads rows independently). DER++ scores its
+        step's scenes and its replayed ones in this one pass."""
         context = self.context(batch)
-        cond = torch.cat(
-            [self._context_with_noise(context, k_train), self._noise_free(context)[None]]
-        )
-        pred = self.decode(batch, cond)  # (12, k_train + 1, N, 2)
-        loss = variety_loss(self.nll(batch, pred[:, :k_train]), batch)
-        return LossOutput(loss, {"nll": loss.item()}, pred[:, :k_train]), pred[:, k_train]
+        samples, agents = noise.shape[:2]
+        noisy = torch.cat([context[:agents].expand(samples, agents, -1), noise], -1)
+        rows = torch.cat([noisy.flatten(0, 1), self._noise_free(context[point_of])])
+        last_rel = batch.obs_rel[-1] / batch.scale
+        last = torch.cat([last_rel[:agents].repeat(samples, 1), last_rel[point_of]])
+        out = self.backbone.decode(rows[None], last)[:, 0]
+        return out[:, : samples * agents].unflatten(1, (samples, agents)), out[
+            :, samples * agents :
+        ]
 
     @torch.no_grad()
     def predict(self, batch: Batch, samples: int) -> torch.Tensor:
@@ -463,10 +473,6 @@ class C2INetModel(Predictor):
         post = self.posteriors(batch)
         z, c, _, _ = self.latents(batch, post, 1, "posterior_mean", z_mean=True)
         return self.decode(batch, self.conditions(batch, post, z, c))[:, 0]
-
-    def loss_and_point(self, batch: Batch, k_train: int = 1) -> tuple[LossOutput, torch.Tensor]:
-        """Eq 10's loss and the posterior-mean prediction, each by its own pass."""
-        return self.loss(batch, k_train), self.point(batch)
 
     @torch.no_grad()
     def predict(

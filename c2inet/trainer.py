@@ -176,7 +176,7 @@ def train_step(
 ) -> dict[str, float]:
     """One optimiser step on ``batch`` with the method's step hooks; returns the loss's parts."""
     ctx.batch = batch
-    ctx.loss, ctx.parts, ctx.output = ctx.model.loss(batch, cfg.k_train)
+    ctx.loss, ctx.parts, ctx.output = method.step_loss(ctx, batch, cfg.k_train)
     method.before_backward(ctx)
     ctx.optimiser.zero_grad()
     ctx.loss.backward()

@@ -1,7 +1,8 @@
 """The method contract: a small class adding behaviour to the one trainer through hooks.
 
 Hooks, in the order the trainer calls them (Avalanche-style), each given the
-:class:`TaskContext`: ``before_task``, ``training_windows``, then at every step
+:class:`TaskContext`: ``before_task``, ``training_windows``, then at every step ``step_loss``
+(the batch's loss; a method that adds scenes of its own scores them in the same forward pass),
 ``before_backward`` (the batch, the model output and the loss are in the context; add penalties
 with ``ctx.add_loss``), ``after_backward`` (the gradients are there: project them),
 ``after_step`` (the optimiser has moved the weights), then ``after_epoch`` and ``after_task``.
@@ -26,7 +27,7 @@ from c2inet.batch import Batch
 from c2inet.data import Windows
 from c2inet.device import model_device
 from c2inet.errors import did_you_mean
-from c2inet.model import ModelConfig, Predictor
+from c2inet.model import LossOutput, ModelConfig, Predictor
 from c2inet.options import Tunable, build
 
 METHODS: dict[str, type[Method]] = {}
@@ -106,6 +107,12 @@ class Method:
 
     def training_windows(self, ctx: TaskContext) -> Windows:
         return ctx.train
+
+    def step_loss(self, ctx: TaskContext, batch: Batch, k_train: int) -> LossOutput:
+        """Every step, the loss of ``batch`` before penalties; it becomes ``ctx.loss``,
+        ``ctx.parts`` and ``ctx.output``. Override to score scenes of the method's own in the
+        same forward pass (DER++'s replay)."""
+        return ctx.model.loss(batch, k_train)
 
     def before_backward(self, ctx: TaskContext) -> None:
         """Every step, before the backward pass: add penalties with ``ctx.add_loss``."""

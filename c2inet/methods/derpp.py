@@ -5,9 +5,9 @@ A reservoir of ``buffer`` scenes (each scene seen has the same chance to be in i
 boundaries: no task labels needed) keeps every scene's noise-free prediction (``point``, the
 regressor's "logits") from when it was stored. Each step adds ``alpha`` times the squared drift
 from those stored outputs and ``beta`` times the task loss on a batch of ``replay_batch``
-reservoir scenes (one batch for both terms, where Mammoth draws two, and one forward pass for
-both: ``loss_and_point``), then offers the step's scenes to the reservoir. Hook:
-``before_backward``. Example: ``--methods derpp``
+reservoir scenes (one batch for both terms, where Mammoth draws two), scored in the same forward
+pass as the step's own scenes (``step_loss``: one joined batch), then offers the step's scenes
+to the reservoir (``before_backward``). Example: ``--methods derpp``
 """
 
 from __future__ import annotations
@@ -18,10 +18,11 @@ from typing import Any
 import numpy as np
 import torch
 
-from c2inet.batch import make_batch
+from c2inet.batch import Batch, make_batch, variety_loss
 from c2inet.data import Windows
 from c2inet.methods.base import Method, TaskContext
-from c2inet.options import Tunable, require
+from c2inet.model import LossOutput
+from c2inet.options import Tunable, choose, require
 
 
 @dataclass(frozen=True)
@@ -30,10 +31,14 @@ class DERPPOptions:
     alpha: float = 0.3  # weight of the stored outputs' term
     beta: float = 0.5  # weight of the replayed scenes' task loss
     replay_batch: int = 16
+    # the replayed scenes' task loss: the step's variety loss over k_train samples, or the
+    # noise-free output's (the one the alpha term holds: DER++'s two terms on one output)
+    replay_loss: str = "variety"
 
     def __post_init__(self):
         require(self, 1, "buffer", "replay_batch")
         require(self, 0, "alpha", "beta")
+        choose(self, "replay_loss", ("variety", "point"))
 
 
 class DERPP(Method):
@@ -54,19 +59,41 @@ class DERPP(Method):
         self.outputs: list[torch.Tensor] = []  # (12, agents, 2) its output when stored
         self.seen = 0  # scenes offered to the reservoir so far
 
-    def _replay(self, ctx: TaskContext) -> None:
+    def _draw(self, ctx: TaskContext) -> tuple[Batch, torch.Tensor]:
+        """A batch of ``replay_batch`` reservoir scenes and their stored outputs (12, N, 2)."""
         count = min(self.options.replay_batch, len(self.scenes))
         chosen = ctx.rng.choice(len(self.scenes), count, replace=False)
         parts = [self.scenes[i] for i in chosen]
         starts = np.cumsum([0] + [len(p) for p in parts])
         windows = Windows(torch.cat(parts).cpu().numpy(), starts, ctx.train.obs_len)
-        batch = make_batch(windows, device=ctx.device)
         stored = torch.cat([self.outputs[i] for i in chosen], dim=1)
-        replayed, point = ctx.model.loss_and_point(batch, ctx.output.shape[1])
+        return make_batch(windows, device=ctx.device), stored
+
+    def step_loss(self, ctx: TaskContext, batch: Batch, k_train: int) -> LossOutput:
+        """The step's scenes and a replayed batch in one forward pass (:class:`Batch.concat`):
+        the step's variety loss, ``alpha`` times the replayed scenes' drift from their stored
+        outputs and ``beta`` times their task loss (``replay_loss``). The noise is drawn part
+        by part, in the order separate passes would draw it."""
+        if not self.scenes:
+            return super().step_loss(ctx, batch, k_train)
+        model, own = ctx.model, batch.obs.shape[1]
+        noise = model.noise(k_train, own)
+        replay, stored = self._draw(ctx)
+        variety = self.options.replay_loss == "variety"
+        if variety:
+            noise = torch.cat([noise, model.noise(k_train, replay.obs.shape[1])], dim=1)
+        joined = Batch.concat([batch, replay])
+        samples, point = model.samples_and_point(joined, noise, slice(own, None))
+        replayed = samples[:, :, own:] if variety else point[:, None]
         drift = ((point - stored) ** 2).sum(dim=(0, 2))
-        drift = batch.per_scene_mean(drift).mean() / (2 * self.model_config.likelihood_std**2)
-        ctx.add_loss("replay_outputs", self.options.alpha * drift)
-        ctx.add_loss("replay", self.options.beta * replayed.loss)
+        drift = replay.per_scene_mean(drift).mean() / (2 * self.model_config.likelihood_std**2)
+        terms = {
+            "nll": variety_loss(model.nll(batch, samples[:, :, :own]), batch),
+            "replay_outputs": self.options.alpha * drift,
+            "replay": self.options.beta * variety_loss(model.nll(replay, replayed), replay),
+        }
+        parts = {name: value.item() for name, value in terms.items()}
+        return LossOutput(sum(terms.values()), parts, samples[:, :, :own])
 
     def _offer(self, ctx: TaskContext) -> None:
         """Reservoir sampling of the step's scenes with their current outputs. The places are
@@ -99,8 +126,6 @@ class DERPP(Method):
                 self.scenes[slot], self.outputs[slot] = scene, output
 
     def before_backward(self, ctx: TaskContext) -> None:
-        if self.scenes:
-            self._replay(ctx)
         self._offer(ctx)
 
     def state_dict(self, model: torch.nn.Module) -> dict[str, Any]:

@@ -156,8 +156,8 @@ def test_derpp_reservoir_keeps_its_size_and_outputs_as_stored():
 
 def test_derpp_computes_outputs_only_at_steps_that_keep_a_scene(monkeypatch):
     """Once the reservoir is full most steps keep no scene and so compute no outputs (every
-    ``point`` call without gradients is an offer's; the replay's outputs come from
-    ``loss_and_point``)."""
+    ``point`` call without gradients is an offer's; the replay's outputs come from the step's
+    one pass, ``scene_losses_and_point``)."""
     from c2inet.model import Predictor
 
     offers, point = [], Predictor.point
@@ -175,29 +175,73 @@ def test_derpp_computes_outputs_only_at_steps_that_keep_a_scene(monkeypatch):
     assert len(offers) <= 12  # 2 filling, then about 2/n of the n-th scene's offers kept
 
 
-def test_one_pass_gives_the_loss_and_the_point_of_separate_passes():
-    """``loss_and_point`` (DER++'s replay) draws the same noise as ``loss`` and gives what the
-    two calls give, gradients included, from one encoder call and one decoder call."""
+def test_one_pass_gives_the_samples_and_the_point_of_separate_passes():
+    """``samples_and_point`` (DER++'s step) with the noise ``loss`` draws gives ``loss``'s
+    samples and the chosen agents' ``point``, gradients included, from one encoder call and one
+    decoder call."""
     from c2inet.model import Predictor
 
     torch.manual_seed(0)
     model, batch = Predictor(ModelConfig()), make_batch(turners(0.3, 4, 0))
+    agents = batch.obs.shape[1]
     torch.manual_seed(1)
-    fused, point = model.loss_and_point(batch, 3)
-    fused_grads = torch.autograd.grad(fused.loss + point.square().sum(), model.parameters())
+    samples, point = model.samples_and_point(batch, model.noise(3, agents), slice(2, None))
+    assert samples.shape == (12, 3, agents, 2) and point.shape == (12, agents - 2, 2)
+    fused = torch.autograd.grad(samples.sum() + point.square().sum(), model.parameters())
     torch.manual_seed(1)
-    apart = model.loss(batch, 3)
-    torch.testing.assert_close(fused.output, apart.output, rtol=1e-5, atol=1e-6)
-    torch.testing.assert_close(point, model.point(batch), rtol=1e-5, atol=1e-6)
-    grads = torch.autograd.grad(apart.loss + model.point(batch).square().sum(), model.parameters())
-    for a, b in zip(fused_grads, grads, strict=True):
+    apart = model.loss(batch, 3).output
+    torch.testing.assert_close(samples, apart, rtol=1e-5, atol=1e-6)
+    alone = model.point(batch)[:, 2:]
+    torch.testing.assert_close(point, alone, rtol=1e-5, atol=1e-6)
+    grads = torch.autograd.grad(apart.sum() + alone.square().sum(), model.parameters())
+    for a, b in zip(fused, grads, strict=True):
+        torch.testing.assert_close(a, b, rtol=1e-4, atol=1e-5)
+
+
+@pytest.mark.parametrize("replay_loss", ["variety", "point"])
+def test_derpp_one_pass_step_is_the_step_of_separate_passes(replay_loss):
+    """DER++'s joined step gives the loss, and the gradient, of the passes it replaces: the
+    step's loss, then the replayed batch's drift and task loss (its variety loss with the same
+    draws, or its noise-free output's)."""
+    options = {"buffer": 6, "replay_batch": 4, "replay_loss": replay_loss}
+    method = get_method("derpp")(ModelConfig(), options)
+    torch.manual_seed(0)
+    model = method.build_model()
+    old, new = turners(-0.3, 6, 1), turners(0.3, 5, 2)
+    ctx = TaskContext(0, "t", old, model, None, np.random.default_rng(0))
+    ctx.batch = make_batch(old)
+    method._offer(ctx)  # the reservoir: the six old scenes and their outputs
+    with torch.no_grad():  # the model has moved since: the stored outputs drift
+        for weight in model.parameters():
+            weight.add_(0.05 * torch.randn_like(weight))
+    batch, k = make_batch(new), 3
+    torch.manual_seed(1)
+    ctx.rng = np.random.default_rng(5)
+    joined = method.step_loss(ctx, batch, k)
+    torch.manual_seed(1)
+    ctx.rng = np.random.default_rng(5)
+    step = model.loss(batch, k)
+    replay, stored = method._draw(ctx)
+    point = model.point(replay)
+    if replay_loss == "variety":
+        loss = model.loss(replay, k).loss
+    else:
+        loss = replay.per_scene_mean(model.nll(replay, point[:, None])).mean()
+    drift = ((point - stored) ** 2).sum(dim=(0, 2))
+    drift = replay.per_scene_mean(drift).mean() / (2 * ModelConfig().likelihood_std ** 2)
+    apart = step.loss + method.options.alpha * drift + method.options.beta * loss
+    assert joined.parts["replay_outputs"] > 1e-3 and joined.parts["replay"] > 0
+    torch.testing.assert_close(joined.loss, apart, rtol=1e-5, atol=1e-6)
+    torch.testing.assert_close(joined.output, step.output, rtol=1e-5, atol=1e-6)
+    grads = torch.autograd.grad(joined.loss, model.parameters())
+    for a, b in zip(grads, torch.autograd.grad(apart, model.parameters()), strict=True):
         torch.testing.assert_close(a, b, rtol=1e-4, atol=1e-5)
 
 
 def test_derpp_replays_its_batch_through_one_encoder_call_a_step(monkeypatch):
-    """Each step encodes its own batch and, once the reservoir holds scenes, the replayed batch:
-    two encoder calls with gradients a step, not three (one for the outputs' term, one for the
-    replayed loss)."""
+    """Each step encodes its own scenes and the replayed ones as one batch: one encoder call
+    with gradients a step, not two (the step's, the replay's) or three (one more for the
+    stored outputs' term)."""
     from c2inet.model import Predictor
 
     encoded, context = [], Predictor.context
@@ -210,7 +254,7 @@ def test_derpp_replays_its_batch_through_one_encoder_call_a_step(monkeypatch):
     method = get_method("derpp")(ModelConfig(), {"buffer": 4})
     config = dataclasses.replace(CONFIG, batch_scenes=1)  # a step per scene
     ContinualTrainer(method, turning_tasks(), config).run()
-    assert encoded.count(True) == 2 * method.seen - 1  # the first step has nothing to replay
+    assert encoded.count(True) == method.seen  # one step per scene
 
 
 def test_lwf_holds_the_model_to_its_previous_predictions():

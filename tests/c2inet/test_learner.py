@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import torch
 
-from c2inet.batch import make_batch
+from c2inet.batch import Batch, make_batch
 from c2inet.data import Windows
 from c2inet.methods.base import TaskContext, discover, get_method
 from c2inet.model import C2INetModel, ModelConfig, Predictor
@@ -30,6 +30,17 @@ def test_padding_round_trips_agents_to_scene_slots():
     padded, mask = batch.pad(x)
     assert mask.sum() == len(x) and padded.shape[:2] == (batch.num_scenes, batch.max_agents)
     torch.testing.assert_close(batch.unpad(padded), x)
+
+
+def test_joined_batches_are_the_batch_of_their_scenes():
+    """``Batch.concat`` (DER++'s one pass over its step and its replay) equals the batch made
+    from both parts' scenes at once, agent offsets, scene indices and padding included."""
+    first, second = toy_windows(5, seed=1), toy_windows(7, seed=2)
+    joined = Batch.concat([make_batch(first), make_batch(second)])
+    whole = make_batch(Windows.concat([first, second]))
+    for name in ("obs", "fut", "scene_start", "scene_of", "slot_of"):
+        assert torch.equal(getattr(joined, name), getattr(whole, name)), name
+    assert joined.max_agents == whole.max_agents and joined.num_scenes == 12
 
 
 def test_graph_attention_stays_inside_each_scene():

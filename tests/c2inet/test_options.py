@@ -51,6 +51,7 @@ def test_ranges_hold_for_configurations_built_in_python_too():
         ("coresets", {"per_task": -1}),
         ("agem", {"memory_batch": 0}),
         ("derpp", {"buffer": 0}),
+        ("derpp", {"replay_loss": "mse"}),
         ("lwf", {"strength": -0.1}),
         ("si", {"damping": 0.0}),
         ("invariant", {"environments": 1}),
