@@ -174,9 +174,8 @@ class Predictor(nn.Module):
         last_rel = batch.obs_rel[-1] / batch.scale
         last = torch.cat([last_rel[:agents].repeat(samples, 1), last_rel[point_of]])
         out = self.backbone.decode(rows[None], last)[:, 0]
-        return out[:, : samples * agents].unflatten(1, (samples, agents)), out[
-            :, samples * agents :
-        ]
+        sampled = samples * agents
+        return out[:, :sampled].unflatten(1, (samples, agents)), out[:, sampled:]
 
     @torch.no_grad()
     def predict(self, batch: Batch, samples: int) -> torch.Tensor:
