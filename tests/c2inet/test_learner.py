@@ -89,6 +89,26 @@ def test_same_seed_same_training_on_cpu():
     np.testing.assert_array_equal(runs[0].matrices["ade"], runs[1].matrices["ade"])
 
 
+def test_fused_adam_takes_the_loops_steps_to_rounding():
+    """The default optimiser is Adam in one kernel; ``fused_adam=False`` is the earlier loop
+    over the weights (runs before December 2026). A training differs only by rounding."""
+    from c2inet.trainer import start_training
+
+    method = get_method("finetune")(ModelConfig())
+    weights = []
+    for fused in (True, False):
+        model, optimiser, _ = start_training(method, TrainConfig(fused_adam=fused))
+        assert optimiser.defaults["fused"] is fused
+        batch = make_batch(toy_windows())
+        for _ in range(5):
+            optimiser.zero_grad()
+            model.loss(batch, 2).loss.backward()
+            optimiser.step()
+        weights.append(torch.cat([p.detach().flatten() for p in model.parameters()]))
+    assert not torch.equal(*weights)  # the option is live
+    torch.testing.assert_close(*weights, rtol=0, atol=1e-5)
+
+
 @pytest.mark.parametrize("name", sorted(n for n, cls in discover().items() if cls.trains))
 def test_trained_methods_beat_constant_velocity_on_the_newest_task(name):
     tasks = turning_tasks(train=40)
