@@ -19,11 +19,13 @@ Run it on 2-agent scenes too (``--scenario crowd_radius_0.1,0.2``), where fixed 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 
 import torch
 
-from c2inet.methods.base import discover, get_method
+from c2inet.errors import InputError
+from c2inet.methods.base import Method, discover, get_method
 from c2inet.model import ModelConfig
 from c2inet.trainer import ContinualTrainer, Task, TrainConfig
 from sim.domains import build_domain
@@ -31,12 +33,17 @@ from sim.experiment.config import parse_settings
 from sim.scenario import parse_scenario
 
 
-def training_rate(spec: str, tasks: list[Task], epochs: int) -> tuple[float, int]:
-    """CPU seconds spent training (hooks included, evaluation excluded) and scenes trained on,
-    for the method ``spec`` (``NAME`` or ``NAME:KEY=VALUE:...``)."""
+def build_method(spec: str) -> Method:
+    """The method ``spec`` names: ``NAME`` or ``NAME:KEY=VALUE:...``."""
     name, *options = spec.split(":")
     settings = parse_settings([f"{name}.{option}" for option in options]).get(name, {})
-    method = get_method(name)(ModelConfig(), settings)
+    return get_method(name)(ModelConfig(), settings)
+
+
+def training_rate(spec: str, tasks: list[Task], epochs: int) -> tuple[float, int]:
+    """CPU seconds spent training (hooks included, evaluation excluded) and scenes trained on,
+    for the method ``spec`` (:func:`build_method`)."""
+    method = build_method(spec)
     trainer = ContinualTrainer(method, tasks, TrainConfig(epochs=epochs, val_every=0))
     seconds, scenes = 0.0, 0
     original = trainer._train_task
@@ -62,9 +69,18 @@ def main() -> None:
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--threads", type=int, default=1, help="torch intra-op threads (default 1)")
     args = p.parse_args()
+    trained = sorted(n for n, cls in discover().items() if cls.trains and n != "finetune")
+    names = ["finetune", *trained] if args.methods == "all" else args.methods.split(",")
+    try:  # a bad method or option: one line, before the domains are made
+        for name in names:
+            build_method(name)
+        specs = parse_scenario(args.scenario)
+    except (InputError, KeyError) as error:  # get_method's KeyError names the known methods
+        print(f"error: {error.args[0]}", file=sys.stderr)
+        sys.exit(2)
     torch.set_num_threads(args.threads)
     tasks = []
-    for spec in parse_scenario(args.scenario):
+    for spec in specs:
         d = build_domain(spec, 0)
         tasks.append(Task(d.name, d.windows("train"), None, d.windows("test")))
     print(
@@ -72,8 +88,6 @@ def main() -> None:
         f"train scenes per task: {[len(t.train) for t in tasks]}; epochs: {args.epochs}; "
         f"best of {args.repeats} interleaved rounds"
     )
-    trained = sorted(n for n, cls in discover().items() if cls.trains and n != "finetune")
-    names = ["finetune", *trained] if args.methods == "all" else args.methods.split(",")
     best: dict[str, tuple[float, int]] = {}
     for _ in range(args.repeats):  # interleaved, so a slow spell of the machine hits every method
         for name in names:

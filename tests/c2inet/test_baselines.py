@@ -157,7 +157,7 @@ def test_derpp_reservoir_keeps_its_size_and_outputs_as_stored():
 def test_derpp_computes_outputs_only_at_steps_that_keep_a_scene(monkeypatch):
     """Once the reservoir is full most steps keep no scene and so compute no outputs (every
     ``point`` call without gradients is an offer's; the replay's outputs come from the step's
-    one pass, ``scene_losses_and_point``)."""
+    one pass, ``samples_and_point``)."""
     from c2inet.model import Predictor
 
     offers, point = [], Predictor.point
