@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
 import zlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -25,8 +26,8 @@ from c2inet.diagnostics import diagnose
 from c2inet.errors import InputError
 from c2inet.files import file_digest, write_atomic, write_text_atomic
 from c2inet.methods.base import Method, TaskContext
-from c2inet.metrics import POINT_DRAWS, evaluate_predictions
-from c2inet.options import Tunable, require
+from c2inet.metrics import POINT_DRAWS, average_seen, evaluate_predictions
+from c2inet.options import Tunable, check_range, require
 
 VARIANT_METRICS = ("ade", "fde", "ade_k1", "fde_k1", "ade_draw", "fde_draw")
 TRAIN_SPACE = {"train.lr": Tunable(3e-4, 3e-2, log=True)}  # tuned for every method that trains
@@ -63,10 +64,16 @@ class TrainConfig:
     # Adam in one kernel for all the weights (the loop over small tensors was 8 % of a step);
     # false: the loop, as runs before December 2026 (the same steps to float32 rounding)
     fused_adam: bool = True
+    # a tuning trial's pruning: stop after task t when the average point-prediction error over
+    # tasks 0..t (the objective so far) is above stop_above[t] (None or no entry: go on)
+    stop_above: tuple[float | None, ...] = ()
 
     def __post_init__(self):
         check_device_name(self.device)
         require(self, 0, "epochs", "seed", "val_every")
+        for bound in self.stop_above:
+            if bound is not None:
+                check_range("stop_above", bound, 0, math.inf)
         require(self, 1, "batch_scenes", "k", "k_train", "eval_batch_scenes")
         require(self, 0, "lr", high=10, open_low=True)
 
@@ -239,6 +246,8 @@ class ContinualTrainer:
         result = Result([t.name for t in self.tasks], {})
         start = self._replay(model, optimiser, rng, result) if resume else 0
         for i in range(start, n):
+            if self._pruned(i - 1, result):
+                break
             task = self.tasks[i]
             seen = self.earlier_training_data(i) if method.sees_old_tasks else []
             ctx = TaskContext(i, task.name, task.train, model, optimiser, rng, seen)
@@ -267,6 +276,14 @@ class ContinualTrainer:
         result.history = self.history
         self.model = model
         return result
+
+    def _pruned(self, index: int, result: Result) -> bool:
+        """Whether the run stops after task ``index`` (-1: before the first): its objective
+        so far, the average point-prediction error over tasks 0..index, is above the bound."""
+        bounds = self.config.stop_above
+        if not 0 <= index < len(bounds) or bounds[index] is None:
+            return False
+        return not average_seen(result.matrices["ade_k1"])[index] <= bounds[index]  # NaN too
 
     def earlier_training_data(self, index: int) -> list[Windows]:
         """The training data of the tasks before ``index``: what only a method that declares

@@ -49,6 +49,12 @@ def main(argv: list[str] | None = None) -> int:
         metavar="SCENES",
         help="give every replay method (coresets, A-GEM, DER++) this many scenes in all",
     )
+    p.add_argument(
+        "--prune",
+        action="store_true",
+        help="stop tuning trials worse than the median of the finished ones after a task (from "
+        "the second on); cheaper, but it can discard the best trial (docs/runs.md)",
+    )
     p.add_argument("--tune-scenario", help="the tuning curriculum (default: the preset's)")
     p.add_argument("--storage", help="an Optuna storage URL shared by trials (default: SQLite)")
     p.add_argument("--out", type=Path, help="the benchmark's folder (default bench/PRESET)")
@@ -68,7 +74,9 @@ def main(argv: list[str] | None = None) -> int:
         tune_scenario = tune_scenario or preset.tune_scenario
     out = args.out or Path("bench") / (args.preset or "custom")
     base = ExperimentConfig(args.scenario, **experiment_options(args))
-    bench = BenchConfig(base, tune_scenario, args.trials, args.storage, args.replay_budget)
+    bench = BenchConfig(
+        base, tune_scenario, args.trials, args.storage, args.replay_budget, args.prune
+    )
     try:
         board = run_bench(
             bench, out, execution_of(args), args.resume, args.overwrite, [*p.prog.split(), *argv]

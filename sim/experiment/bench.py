@@ -71,13 +71,15 @@ PRESETS = {
 @dataclass(frozen=True)
 class BenchConfig:
     """``base``: the evaluation (scenario, methods, seeds, sizes, ``--set``); ``tune_scenario``:
-    the tuning curriculum (None: the first task of ``base.scenario``); ``trials`` per method."""
+    the tuning curriculum (None: the first task of ``base.scenario``); ``trials`` per method;
+    ``prune``: stop trials worse than the median so far (``sim.experiment.tuning``)."""
 
     base: ExperimentConfig
     tune_scenario: str | None = None
     trials: int = 6
     storage: str | None = None
     replay_budget: int | None = None  # scenes every replay method keeps in all (None: defaults)
+    prune: bool = False
 
     def __post_init__(self):
         if self.replay_budget is None:
@@ -95,7 +97,8 @@ class BenchConfig:
     def tuning(self) -> TuneConfig:
         first = self.base.specs[0]
         scenario = self.tune_scenario or f"{first.family.name}_{first.label}"
-        return TuneConfig(replace(self.base, scenario=scenario), self.trials, self.storage)
+        base = replace(self.base, scenario=scenario)
+        return TuneConfig(base, self.trials, self.storage, self.prune)
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -103,6 +106,7 @@ class BenchConfig:
             "tune_scenario": self.tune_scenario,
             "trials": self.trials,
             "replay_budget": self.replay_budget,
+            "prune": self.prune,
         }
 
 
@@ -168,6 +172,7 @@ def leaderboard(
                 "cpu_seconds": round(cost[method], 1),
                 "settings": chosen[method]["settings"],
                 "trials": len(chosen[method]["trials"]),
+                "pruned": sum(t["pruned"] for t in chosen[method]["trials"]),
             }
         )
     base = bench.base
@@ -175,6 +180,7 @@ def leaderboard(
         "scenario": base.scenario,
         "tune_scenario": bench.tuning().base.scenario,
         "trials": bench.trials,
+        "prune": bench.prune,
         "replay_budget": bench.replay_budget,
         "seeds": base.seeds,
         "quick": base.quick,
@@ -199,20 +205,22 @@ def leaderboard_markdown(board: dict[str, Any]) -> str:
             for scope, options in e["settings"].items()
             for k, v in options.items()
         )
-        cells = [text or "(nothing to tune)", str(e["trials"]), str(e["cpu_seconds"])]
+        trials = f"{e['trials']} ({e['pruned']} pruned)" if e.get("pruned") else str(e["trials"])
+        cells = [text or "(nothing to tune)", trials, str(e["cpu_seconds"])]
         settings.append([e["method"], *cells])
     kind = "quick sizes (a smoke test, not a result)" if board["quick"] else "default sizes"
+    pruned = ", those worse than the median so far stopped early" if board.get("prune") else ""
     return "\n".join(
         [
             f"# Benchmark: `{board['scenario']}`",
             "",
             f"Every method tuned with the same budget ({board['trials']} Optuna trials, its "
-            f"defaults first) on `{board['tune_scenario']}` scored on validation data only, then "
-            f"run with the chosen settings over {board['seeds']} seeds; {kind}. Ranked by final "
-            "average ADE of the point prediction (K = 1: the mean of sampled futures). Intervals "
-            f"are 95 %; p is a paired t-test against {board['reference']} over the same seeds, "
-            f"`*` below {board['alpha']}; a difference whose interval holds 0 is within the seed "
-            "spread. Memory: floats a method keeps between tasks besides the model."
+            f"defaults first{pruned}) on `{board['tune_scenario']}` scored on validation data "
+            f"only, then run with the chosen settings over {board['seeds']} seeds; {kind}. Ranked "
+            "by final average ADE of the point prediction (K = 1: the mean of sampled futures). "
+            f"Intervals are 95 %; p is a paired t-test against {board['reference']} over the same "
+            f"seeds, `*` below {board['alpha']}; a difference whose interval holds 0 is within the "
+            "seed spread. Memory: floats a method keeps between tasks besides the model."
             + (
                 f" Every replay method keeps {board['replay_budget']} scenes in all."
                 if board.get("replay_budget")

@@ -15,6 +15,14 @@ live in SQLite beside the run (``--storage URL`` for a shared database); the sam
 from the seed, the method and the trial's index before each ask, so a killed tuning resumes to
 the same choices: unfinished trials are failed and asked again, and their jobs resume from their
 own folders.
+
+With ``prune`` (off by default), bad trials stop early by Optuna's median rule: after each
+tuning task past the first ``warmup_tasks`` but the last, a trial stops when its objective so far
+(the average point-prediction ADE over the tasks it has learnt) is worse than the median of the
+finished trials' at that task. The bounds are fixed
+when the trial is asked, from the trials finished before it, so a resumed tuning prunes the
+same trials; to give the defaults something to be measured against, they run alone first. A
+pruned trial counts in the budget and is never chosen; TPE reads it as worse than the finished.
 """
 
 from __future__ import annotations
@@ -31,8 +39,9 @@ import numpy as np
 from c2inet.errors import InputError
 from c2inet.files import write_text_atomic
 from c2inet.methods.base import get_method
+from c2inet.metrics import average_seen
 from c2inet.options import Tunable
-from c2inet.trainer import TRAIN_SPACE, Task
+from c2inet.trainer import TRAIN_SPACE, Result, Task
 from sim.experiment.config import Execution, ExperimentConfig
 from sim.experiment.curriculum import Curriculum, JobInputs
 from sim.experiment.sweep import Planned, layered, plan, run_together
@@ -49,10 +58,15 @@ class TuneConfig:
     base: ExperimentConfig
     trials: int = 6
     storage: str | None = None  # an Optuna storage URL; default: SQLite beside the run
+    prune: bool = False  # stop trials worse than the median of the finished ones (off: see
+    # docs/runs.md, it threw away the best trial of A-GEM, and of two more methods without warm-up)
+    warmup_tasks: int = 1  # tasks after which no trial is stopped (Optuna's n_warmup_steps)
 
     def __post_init__(self):
         if self.trials < 1:
             raise InputError(f"trials must be at least 1, got {self.trials}")
+        if self.warmup_tasks < 0:
+            raise InputError(f"warmup tasks must be at least 0, got {self.warmup_tasks}")
 
 
 def search_space(method: str) -> dict[str, Tunable]:
@@ -99,10 +113,13 @@ def _sampler(seed: int, method: str, index: int, trials: int):
     )
 
 
-def _round_size(finished: int, trials: int) -> int:
+def _round_size(finished: int, trials: int, prune: bool) -> int:
     """How many trials a method asks in the next round, ``finished`` of ``trials`` done: the
     start-up trials are drawn without reading any result (TPE ignores running trials), so
-    asking them together gives the same settings as asking them one by one."""
+    asking them together gives the same settings as asking them one by one. When pruning, the
+    defaults run alone first: the draws after them are measured against them."""
+    if prune and finished == 0:
+        return 1
     if finished < startup_trials(trials):
         return startup_trials(trials) - finished
     return 1
@@ -136,6 +153,18 @@ def _distribution(space: Tunable):
     return FloatDistribution(space.low, space.high, log=space.log)
 
 
+def stop_bounds(curves: list[list[float]], tasks: int, warmup: int) -> tuple[float | None, ...]:
+    """A trial's pruning bounds, one per tuning task but the last: the median of the finished
+    trials' objectives so far (``curves``, one per trial) after that task (Optuna's
+    ``MedianPruner`` rule), None for the first ``warmup`` tasks; empty before the first trial
+    finishes."""
+    if not curves:
+        return ()
+    return tuple(
+        float(np.median([c[t] for c in curves])) if t >= warmup else None for t in range(tasks - 1)
+    )
+
+
 # what a trial's objective (the final point-prediction ADE) never reads, so trials skip it: the
 # diagnostics, the per-epoch validation curves and the latent models' other test-time rules
 TRIAL_TRAIN = {"diagnostics": False, "val_every": 0, "test_rules": False}
@@ -165,13 +194,18 @@ def run_tuning(
             study.tell(trial.number, state=TrialState.FAIL)  # killed: asked again below
         studies[method] = study
 
-    def finished(method: str) -> list:
-        return studies[method].get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
+    def finished(method: str, states=(TrialState.COMPLETE, TrialState.PRUNED)) -> list:
+        return studies[method].get_trials(deepcopy=False, states=states)
 
     def plan_trial(method: str, index: int, params: dict[str, Any]) -> Planned:
-        """The experiment of one trial, in its folder, on the validation splits."""
+        """The experiment of one trial, in its folder, on the validation splits, with the
+        bounds that stop it early when pruning."""
         settings = as_settings(method, params)
         settings["train"] = {**settings.get("train", {}), **TRIAL_TRAIN}
+        if tune.prune:
+            complete = finished(method, (TrialState.COMPLETE,))
+            curves = [_curve(t) for t in complete if len(t.intermediate_values) == tasks]
+            settings["train"]["stop_above"] = stop_bounds(curves, tasks, tune.warmup_tasks)
         config = replace(base, methods=(method,), settings=layered(base, settings))
         folder = out / "trials" / method / f"trial_{index:03d}"
         resumed = (folder / "config.json").is_file()  # a trial a killed tuning began
@@ -181,6 +215,7 @@ def run_tuning(
         curriculum.inputs = validation_inputs(curriculum)
         return label, config, folder, curriculum
 
+    tasks = len(base.specs)
     while pending := [m for m in tuned if len(finished(m)) < tune.trials]:
         asked, planned = [], []
         for method in pending:
@@ -188,30 +223,62 @@ def run_tuning(
             study = studies[method]
             if count == 0 and not study.get_trials(deepcopy=False, states=(TrialState.WAITING,)):
                 study.enqueue_trial(_defaults(method, space, base))  # the defaults come first
-            for index in range(count, count + _round_size(count, tune.trials)):
+            for index in range(count, count + _round_size(count, tune.trials, tune.prune)):
                 study.sampler = _sampler(base.seed, method, index, tune.trials)
                 trial = study.ask({key: _distribution(s) for key, s in space.items()})
                 asked.append((method, trial))
                 planned.append(plan_trial(method, index, trial.params))
         costs = [trial_seconds(out, method) for method, _ in asked]  # the longest start first
         done = run_together(planned, execution, resume=True, argv=[], costs=costs)
-        for (method, trial), (metrics, _) in zip(asked, done, strict=True):  # in index order
-            value = metrics["methods"][method]["final_ade_k1_per_seed"][0]
+        for (method, trial), (_, (job,)) in zip(asked, done, strict=True):  # in index order
             # a diverged trial is the worst there is, not a failure to ask again (same seed,
             # same history: the same settings, for ever)
-            studies[method].tell(trial, value if math.isfinite(value) else math.inf)
+            curve = [round(float(v), 6) for v in objective_so_far(job.result)]  # as metrics
+            for task, value in enumerate(curve):
+                trial.report(value if math.isfinite(value) else math.inf, task)
+            if len(curve) < tasks:
+                studies[method].tell(trial, state=TrialState.PRUNED)
+            else:
+                studies[method].tell(trial, curve[-1] if math.isfinite(curve[-1]) else math.inf)
     chosen = {m: {"settings": {}, "trials": []} for m in base.methods if m not in tuned}
     for method in tuned:
         trials = finished(method)
-        best = min(trials, key=lambda t: (t.value, t.number))
+        complete = finished(method, (TrialState.COMPLETE,))
+        best = min(complete, key=lambda t: (t.value, t.number))
         chosen[method] = {
             "settings": as_settings(method, best.params),
             "objective": _finite(best.value),
             "default_objective": _finite(trials[0].value),  # the first trial is the defaults
-            "trials": [{"params": t.params, "objective": _finite(t.value)} for t in trials],
+            "trials": [_trial_record(t) for t in trials],  # in the order they were asked
         }
     write_text_atomic(out / "tuning.json", json.dumps(chosen, indent=1) + "\n")
     return chosen
+
+
+def objective_so_far(result: Result) -> np.ndarray:
+    """After each task a trial learnt, its average point-prediction ADE over the tasks so far
+    (the last one, after the last task, is the objective)."""
+    return average_seen(result.matrices["ade_k1"][: len(result.summaries)])  # one a task learnt
+
+
+def _curve(trial) -> list[float]:
+    """A finished trial's objective so far after each task it learnt, as it reported them."""
+    return [trial.intermediate_values[t] for t in sorted(trial.intermediate_values)]
+
+
+def _trial_record(trial) -> dict[str, Any]:
+    """A trial for ``tuning.json``: its settings, its objective (null when pruned or diverged),
+    whether it was pruned, and its objective so far after each task it learnt."""
+    from optuna.trial import TrialState
+
+    curve, pruned = _curve(trial), trial.state == TrialState.PRUNED
+    return {
+        "params": trial.params,
+        "objective": None if pruned else _finite(trial.value),
+        "pruned": pruned,
+        "tasks": len(curve),
+        "objective_so_far": [_finite(v) for v in curve],
+    }
 
 
 def trial_seconds(out: Path, method: str) -> float:

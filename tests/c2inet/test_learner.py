@@ -6,6 +6,7 @@ import torch
 
 from c2inet.batch import Batch, make_batch
 from c2inet.data import Windows
+from c2inet.errors import InputError
 from c2inet.methods.base import TaskContext, discover, get_method
 from c2inet.model import C2INetModel, ModelConfig, Predictor
 from c2inet.trainer import ContinualTrainer, TrainConfig
@@ -107,6 +108,32 @@ def test_fused_adam_takes_the_loops_steps_to_rounding():
         weights.append(torch.cat([p.detach().flatten() for p in model.parameters()]))
     assert not torch.equal(*weights)  # the option is live
     torch.testing.assert_close(*weights, rtol=0, atol=1e-5)
+
+
+def test_a_run_stops_after_the_first_task_its_objective_so_far_is_above_its_bound(tmp_path):
+    """``stop_above`` (tuning's pruning): the run stops after task t when its average point
+    error over tasks 0..t is above the bound; None (no bound) never stops it, and a run
+    resumed from its checkpoints stops where the uninterrupted one did."""
+    from c2inet.metrics import average_seen
+
+    tasks = turning_tasks((0.1, 0.2, 0.3))
+    full = ContinualTrainer(get_method("finetune")(ModelConfig()), tasks, TrainConfig(epochs=1))
+    curve = average_seen(full.run().matrices["ade_k1"])
+    bounds = (None, curve[1] * 0.999)  # through the first task, stop after the second
+    config = TrainConfig(epochs=1, stop_above=bounds)
+    stopped = ContinualTrainer(get_method("finetune")(ModelConfig()), tasks, config, tmp_path)
+    result = stopped.run()
+    assert len(result.summaries) == 2 and np.isnan(result.matrices["ade_k1"][2]).all()
+    np.testing.assert_array_equal(average_seen(result.matrices["ade_k1"][:2]), curve[:2])
+    assert {epoch["task"] for epoch in result.history} == {0, 1}
+    again = ContinualTrainer(get_method("finetune")(ModelConfig()), tasks, config, tmp_path)
+    assert len(again.run(resume=True).summaries) == 2  # resumed after task 1: stops at once
+    loose = TrainConfig(epochs=1, stop_above=(curve[0], curve[1] * 1.001))
+    through = ContinualTrainer(get_method("finetune")(ModelConfig()), tasks, loose).run()
+    assert len(through.summaries) == 3
+    for bad in (-1.0, float("nan")):
+        with pytest.raises(InputError, match="stop_above"):
+            TrainConfig(stop_above=(bad,))
 
 
 @pytest.mark.parametrize("name", sorted(n for n, cls in discover().items() if cls.trains))

@@ -8,11 +8,12 @@ import numpy as np
 import pytest
 
 from c2inet.errors import InputError
+from c2inet.trainer import Result
 from sim.bench import main
 from sim.experiment import ExperimentConfig
 from sim.experiment.bench import BenchConfig
-from sim.experiment.config import Execution
-from sim.experiment.jobs import prepare
+from sim.experiment.config import Execution, Job
+from sim.experiment.jobs import JobResult, prepare
 from sim.experiment.tuning import TuneConfig, run_tuning, validation_inputs
 
 BAD_LR = 1e-5  # a default that barely trains in two epochs
@@ -69,7 +70,7 @@ def test_start_up_trials_run_in_one_round_and_choose_as_one_at_a_time(tuned, tmp
 
     run_together = tuning.run_together
     monkeypatch.setattr(tuning, "run_together", counted)
-    monkeypatch.setattr(tuning, "_round_size", lambda finished, trials: 1)  # one at a time
+    monkeypatch.setattr(tuning, "_round_size", lambda *_: 1)  # one at a time
     tuning_of = bench_of("crowd_noise_0.1,0.2").tuning()
     alone = run_tuning(tuning_of, tmp_path / "alone", Execution(cache=tmp_path / "cache"))
     assert rounds == [1, 1, 1, 1] and alone == tuned
@@ -121,6 +122,7 @@ def test_the_command_ranks_every_method_and_resumes_to_the_same_leaderboard(tmp_
         "2",
         "--quick",
         "--no-record",
+        "--prune",
         "--cache",
         str(tmp_path / "cache"),
         "--out",
@@ -131,6 +133,7 @@ def test_the_command_ranks_every_method_and_resumes_to_the_same_leaderboard(tmp_
     assert [e["rank"] for e in board["entries"]] == [1, 2, 3]
     means = [e["final_ade_k1"]["mean"] for e in board["entries"]]
     assert means == sorted(means) and board["tune_scenario"] == "crowd_noise_0.1"
+    assert board["prune"] and "stopped early" in (out / "leaderboard.md").read_text()
     entry = {e["method"]: e for e in board["entries"]}
     assert entry["ewc"]["memory_floats"] > 0 and entry["finetune"]["memory_floats"] == 0
     assert entry["ewc"]["trials"] == entry["finetune"]["trials"] == 2  # the same budget
@@ -163,6 +166,8 @@ def test_a_replay_budget_gives_every_replay_method_the_same_scenes():
 def test_bad_tuning_options_are_refused():
     with pytest.raises(InputError, match="trials must be at least 1"):
         TuneConfig(ExperimentConfig("crowd_noise_0.1", methods=("cv",)), trials=0)
+    with pytest.raises(InputError, match="warmup tasks must be at least 0"):
+        TuneConfig(ExperimentConfig("crowd_noise_0.1", methods=("cv",)), warmup_tasks=-1)
 
 
 def test_a_diverged_trial_counts_as_the_worst_and_tuning_moves_on(tmp_path, monkeypatch):
@@ -173,12 +178,44 @@ def test_a_diverged_trial_counts_as_the_worst_and_tuning_moves_on(tmp_path, monk
     from sim.experiment import tuning
 
     def diverging(planned, execution, resume, argv, costs=None):
-        return [({"methods": {"finetune": {"final_ade_k1_per_seed": [math.nan]}}}, [])] * len(
-            planned
-        )
+        job = JobResult(Job("finetune", 0), Result(["t"], {"ade_k1": np.array([[math.nan]])}, [{}]))
+        return [({}, [job])] * len(planned)
 
     monkeypatch.setattr(tuning, "run_together", diverging)
     base = ExperimentConfig("crowd_noise_0.1", methods=("finetune",), quick=True, record=False)
     chosen = run_tuning(TuneConfig(base, trials=2), tmp_path, Execution(cache=tmp_path / "c"))
     assert [t["objective"] for t in chosen["finetune"]["trials"]] == [None, None]  # JSON null
     assert len(chosen["finetune"]["trials"]) == 2
+
+
+def test_trials_worse_than_the_median_so_far_stop_early_and_resume_alike(tmp_path):
+    """Pruning: the defaults run alone first; after each task past the warm-up but the last, a
+    later trial stops when its objective so far is above the median of the trials finished
+    before its round; a pruned trial is never chosen, and a second tuning over the same folder
+    changes nothing."""
+    base = ExperimentConfig("crowd_noise_0.1..0.3", methods=("finetune",), quick=True, record=False)
+    tune = TuneConfig(base, trials=6, prune=True)
+    execution = Execution(cache=tmp_path / "cache")
+    assert tune.warmup_tasks == 1 and not TuneConfig(base).prune  # off by default
+    chosen = run_tuning(tune, tmp_path / "a", execution)["finetune"]
+    trials = chosen["trials"]
+    rounds = [[0], [1, 2], [3], [4], [5]]  # 3 start-up trials, the defaults alone first
+    for i, round_ in enumerate(rounds):
+        before = [trials[k]["objective_so_far"] for r in rounds[:i] for k in r]
+        before = [curve for curve in before if len(curve) == 3]  # the finished ones
+        for k in round_:
+            curve, tasks = trials[k]["objective_so_far"], 3
+            if before and curve[1] > np.median([c[1] for c in before]):  # not after task 0
+                tasks = 2
+            assert trials[k]["tasks"] == tasks and trials[k]["pruned"] == (tasks < 3)
+            assert (trials[k]["objective"] is None) == trials[k]["pruned"]
+    pruned = [k for k, trial in enumerate(trials) if trial["pruned"]]
+    assert pruned, "no trial was pruned: the test cannot tell pruning from none"
+    best = min(t["objective"] for t in trials if t["objective"] is not None)
+    assert len(trials) == 6 and chosen["objective"] == best
+    folder = tmp_path / "a" / "trials" / "finetune" / f"trial_{pruned[0]:03d}"
+    learnt = json.loads((folder / "metrics.json").read_text())["methods"]["finetune"]
+    assert {epoch["task"] for epoch in learnt["history"]} == {0, 1}  # the third not trained
+    assert run_tuning(tune, tmp_path / "a", execution)["finetune"] == chosen
+    unpruned = run_tuning(replace(tune, prune=False), tmp_path / "b", execution)["finetune"]
+    assert all(t["tasks"] == 3 for t in unpruned["trials"])
