@@ -6,8 +6,10 @@ finished ones stop after a task) and without. Prints, per method and side by sid
 CPU seconds, the trials pruned, the settings chosen and their validation objective, and whether
 a pruned trial would have been the best had it run to the end (the unpruned tuning says).
 
-    python benchmarks/tuning_pruning.py [--preset radius] [--methods finetune,ewc,c2inet-online]
-        [--trials 6] [--jobs 2] [--quick] [--out benchmarks_out/tuning_pruning]
+    python benchmarks/tuning_pruning.py [--preset radius] [--trials 6] [--warmup 1] [--jobs 2]
+        [--methods finetune,ewc,agem,derpp,c2inet-online] [--quick] [--out DIR]
+
+A folder already tuned is read back, so arms with other warm-ups reuse the full tuning.
 
 Every method must have something to tune (not ``cv``).
 """
