@@ -42,13 +42,13 @@ def main() -> None:
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--warmup", type=int, default=1, help="tasks after which none is pruned (1)")
     p.add_argument("--quick", action="store_true", help="tiny sizes: a smoke test")
-    p.add_argument("--out", type=Path, default=Path("benchmarks_out/tuning_pruning"))
+    p.add_argument("--out", type=Path, default=Path("runs/tuning_pruning"))
     args = p.parse_args()
     preset = PRESETS[args.preset]
     methods = tuple(args.methods.split(","))
     base = ExperimentConfig(preset.scenario, methods=methods, quick=args.quick, record=False)
     tuning = BenchConfig(base, preset.tune_scenario, args.trials).tuning()
-    execution = Execution(jobs=args.jobs, cache=args.out / "cache")
+    execution = Execution(jobs=args.jobs, cache=Path(".cache/domains"))
     folders = {True: args.out / f"pruned_warmup{args.warmup}", False: args.out / "full"}
     chosen, wall = {}, {}
     for prune, folder in folders.items():  # a folder already tuned is read back
