@@ -217,5 +217,6 @@ def test_trials_worse_than_the_median_so_far_stop_early_and_resume_alike(tmp_pat
     learnt = json.loads((folder / "metrics.json").read_text())["methods"]["finetune"]
     assert {epoch["task"] for epoch in learnt["history"]} == {0, 1}  # the third not trained
     assert run_tuning(tune, tmp_path / "a", execution)["finetune"] == chosen
-    unpruned = run_tuning(replace(tune, prune=False), tmp_path / "b", execution)["finetune"]
+    unpruned = run_tuning(replace(tune, prune=False, trials=3), tmp_path / "b", execution)
+    unpruned = unpruned["finetune"]
     assert all(t["tasks"] == 3 for t in unpruned["trials"])
