@@ -19,10 +19,11 @@ own folders.
 With ``prune`` (off by default), bad trials stop early by Optuna's median rule: after each
 tuning task past the first ``warmup_tasks`` but the last, a trial stops when its objective so far
 (the average point-prediction ADE over the tasks it has learnt) is worse than the median of the
-finished trials' at that task. The bounds are fixed
-when the trial is asked, from the trials finished before it, so a resumed tuning prunes the
-same trials; to give the defaults something to be measured against, they run alone first. A
-pruned trial counts in the budget and is never chosen; TPE reads it as worse than the finished.
+finished trials' at that task. The bounds are fixed when the trial is asked, from the trials
+finished before it, so a resumed tuning prunes the same trials; the defaults run alone first,
+so the draws after them are measured against them. A pruned trial counts in the budget and is
+never chosen; TPE reads it as worse than the finished. Measured, pruning saved little and could
+discard the best trial (``docs/runs.md``), hence off.
 """
 
 from __future__ import annotations
@@ -58,8 +59,7 @@ class TuneConfig:
     base: ExperimentConfig
     trials: int = 6
     storage: str | None = None  # an Optuna storage URL; default: SQLite beside the run
-    prune: bool = False  # stop trials worse than the median of the finished ones (off: see
-    # docs/runs.md, it threw away the best trial of A-GEM, and of two more methods without warm-up)
+    prune: bool = False  # stop trials worse than the median of the finished ones
     warmup_tasks: int = 1  # tasks after which no trial is stopped (Optuna's n_warmup_steps)
 
     def __post_init__(self):
