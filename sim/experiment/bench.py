@@ -10,11 +10,13 @@ seeds and the same data as every other method) and the leaderboard: ``leaderboar
 from __future__ import annotations
 
 import json
+import sys
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
 
 from c2inet.errors import InputError
 from c2inet.files import write_text_atomic
@@ -23,9 +25,18 @@ from c2inet.report import REFERENCE, compare, comparison_rows, markdown_table
 from c2inet.significance import ALPHA
 from sim.experiment.backends import kept_workers
 from sim.experiment.config import Execution, ExperimentConfig
+from sim.experiment.estimate import describe, job_seconds, run_seconds
+from sim.experiment.jobs import prepare
 from sim.experiment.outputs import COLUMNS, claim, tidy_rows, write_results
 from sim.experiment.sweep import layered, plan, run_together
-from sim.experiment.tuning import TuneConfig, run_tuning, trial_seconds
+from sim.experiment.tuning import (
+    TRIAL_TRAIN,
+    TuneConfig,
+    run_tuning,
+    search_space,
+    trial_seconds,
+    validation_inputs,
+)
 from viz.figures import leaderboard_figure
 
 
@@ -110,6 +121,30 @@ class BenchConfig:
         }
 
 
+def estimate_bench(bench: BenchConfig, execution: Execution) -> dict[str, Any]:
+    """What a benchmark will cost, by the run's own estimate (``sim.experiment.estimate``): one
+    tuning trial (``trial``) and one evaluation job (``job``) of each method, in seconds on this
+    machine; the trials each method gets; the CPU seconds of all of them, of the tuning alone,
+    and the wall time with ``execution.jobs`` at a time (the tuning's rounds hold a trial of
+    every method, so it is shared out evenly; the evaluation's jobs go longest first)."""
+    torch.set_num_threads(execution.threads)
+    base, tuning = bench.base, bench.tuning().base
+    tuning = replace(tuning, settings=layered(tuning, {"train": TRIAL_TRAIN}))
+    trial = job_seconds(tuning, validation_inputs(prepare(tuning, execution)).tasks)
+    job = job_seconds(base, prepare(base, execution).inputs.tasks)
+    trials = {m: bench.trials if search_space(m) else 0 for m in base.methods}
+    tuning_cpu = sum(trials[m] * trial[m] for m in base.methods)
+    evaluation_cpu = sum(base.seeds * job[m] for m in base.methods)
+    return {
+        "trial": trial,
+        "job": job,
+        "trials": trials,
+        "cpu_seconds": tuning_cpu + evaluation_cpu,
+        "tuning_cpu_seconds": tuning_cpu,
+        "wall_seconds": tuning_cpu / execution.jobs + run_seconds(base, job, execution.jobs),
+    }
+
+
 def run_bench(
     bench: BenchConfig,
     out: Path,
@@ -121,6 +156,15 @@ def run_bench(
     """Tune, evaluate and rank; returns the leaderboard (also written under ``out``)."""
     execution = execution or Execution()
     claim(out, bench, execution, resume, overwrite)
+    if not resume and not bench.base.quick:  # timing a quick benchmark costs as much as running it
+        cost = estimate_bench(bench, execution)
+        trials = sum(cost["trials"].values())
+        print(
+            f"{trials} tuning trials and {len(bench.base.jobs())} evaluation jobs, "
+            f"{execution.jobs} at a time: about {describe(cost['wall_seconds'])} "
+            "(timed on this machine)",
+            file=sys.stderr,
+        )
     with kept_workers():  # the tuning rounds and the evaluation start the workers once
         chosen = run_tuning(bench.tuning(), out / "tuning", execution)
         planned = []

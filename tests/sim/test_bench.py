@@ -11,7 +11,7 @@ from c2inet.errors import InputError
 from c2inet.trainer import Result
 from sim.bench import main
 from sim.experiment import ExperimentConfig
-from sim.experiment.bench import BenchConfig
+from sim.experiment.bench import BenchConfig, estimate_bench
 from sim.experiment.config import Execution, Job
 from sim.experiment.jobs import JobResult, prepare
 from sim.experiment.tuning import TuneConfig, run_tuning, validation_inputs
@@ -220,3 +220,35 @@ def test_trials_worse_than_the_median_so_far_stop_early_and_resume_alike(tmp_pat
     unpruned = run_tuning(replace(tune, prune=False, trials=3), tmp_path / "b", execution)
     unpruned = unpruned["finetune"]
     assert all(t["tasks"] == 3 for t in unpruned["trials"])
+
+
+def test_the_benchmark_estimate_times_a_trial_as_tuning_runs_it_and_adds_every_job(
+    tmp_path, monkeypatch
+):
+    """``estimate_bench``: a trial is timed on the tuning curriculum's validation data with what
+    trials skip switched off, a job on the evaluated curriculum; the totals count every trial of
+    every tuned method and every seed, and the wall time shares them over the jobs."""
+    from sim.experiment import bench as bench_module
+    from sim.experiment.estimate import run_seconds
+
+    timed = []
+
+    def recorded(config, tasks):
+        timed.append((config, tasks))
+        return {name: 10.0 * len(tasks) for name in config.methods}  # no clock in a test
+
+    monkeypatch.setattr(bench_module, "job_seconds", recorded)
+    base = ExperimentConfig(
+        "crowd_noise_0.1,0.2", methods=("finetune", "cv"), seeds=2, quick=True, record=False
+    )
+    bench = BenchConfig(base, trials=3)
+    cost = estimate_bench(bench, Execution(jobs=2, cache=tmp_path / "cache"))
+    (trial_config, trial_tasks), (job_config, job_tasks) = timed
+    assert trial_config.scenario == "crowd_noise_0.1" and job_config.scenario == base.scenario
+    train = trial_config.train_config()
+    assert not train.diagnostics and not train.test_rules and train.val_every == 0
+    assert all(task.test is task.val for task in trial_tasks) and len(job_tasks) == 2
+    assert cost["trials"] == {"finetune": 3, "cv": 0}
+    assert cost["tuning_cpu_seconds"] == 3 * 10.0
+    assert cost["cpu_seconds"] == 3 * 10.0 + 2 * (20.0 + 20.0)
+    assert cost["wall_seconds"] == 30.0 / 2 + run_seconds(base, cost["job"], 2)
