@@ -128,8 +128,8 @@ def estimate_bench(bench: BenchConfig, execution: Execution) -> dict[str, Any]:
     and the wall time with ``execution.jobs`` at a time (the tuning's rounds hold a trial of
     every method, so it is shared out evenly; the evaluation's jobs go longest first)."""
     torch.set_num_threads(execution.threads)
-    base, tuning = bench.base, bench.tuning().base
-    tuning = replace(tuning, settings=layered(tuning, {"train": TRIAL_TRAIN}))
+    base, tuning = replace(bench.base, record=False), bench.tuning().base  # nothing drawn
+    tuning = replace(tuning, settings=layered(tuning, {"train": TRIAL_TRAIN}), record=False)
     trial = job_seconds(tuning, validation_inputs(prepare(tuning, execution)).tasks)
     job = job_seconds(base, prepare(base, execution).inputs.tasks)
     trials = {m: bench.trials if search_space(m) else 0 for m in base.methods}
