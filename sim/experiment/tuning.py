@@ -282,10 +282,12 @@ def _trial_record(trial) -> dict[str, Any]:
 
 
 def trial_seconds(out: Path, method: str) -> float:
-    """The mean CPU seconds of ``method``'s finished trials under the tuning folder ``out``
-    (0 before the first): what orders the trials and evaluation jobs, longest first."""
-    spent = [
-        json.loads(path.read_text()).get("cpu_seconds") or 0.0
+    """The mean CPU seconds of ``method``'s finished trials under the tuning folder ``out`` that
+    learnt every task (a pruned one's is part of a trial; 0 before the first): what orders the
+    trials and evaluation jobs, longest first."""
+    results = [
+        json.loads(path.read_text())
         for path in (out / "trials" / method).glob("trial_*/jobs/*/seed_*/result.json")
     ]
+    spent = [r.get("cpu_seconds") or 0.0 for r in results if len(r["summaries"]) == len(r["tasks"])]
     return float(np.mean(spent)) if spent else 0.0

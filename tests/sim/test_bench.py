@@ -14,7 +14,7 @@ from sim.experiment import ExperimentConfig
 from sim.experiment.bench import BenchConfig, estimate_bench
 from sim.experiment.config import Execution, Job
 from sim.experiment.jobs import JobResult, prepare
-from sim.experiment.tuning import TuneConfig, run_tuning, validation_inputs
+from sim.experiment.tuning import TuneConfig, run_tuning, trial_seconds, validation_inputs
 
 BAD_LR = 1e-5  # a default that barely trains in two epochs
 
@@ -216,6 +216,13 @@ def test_trials_worse_than_the_median_so_far_stop_early_and_resume_alike(tmp_pat
     folder = tmp_path / "a" / "trials" / "finetune" / f"trial_{pruned[0]:03d}"
     learnt = json.loads((folder / "metrics.json").read_text())["methods"]["finetune"]
     assert {epoch["task"] for epoch in learnt["history"]} == {0, 1}  # the third not trained
+    jobs = tmp_path / "a" / "trials" / "finetune"
+    full = [  # what orders the jobs: a full trial's CPU seconds, not a pruned one's part
+        json.loads(path.read_text())["cpu_seconds"]
+        for path in jobs.glob("trial_*/jobs/*/seed_*/result.json")
+        if int(path.parts[-5].removeprefix("trial_")) not in pruned
+    ]
+    assert trial_seconds(tmp_path / "a", "finetune") == pytest.approx(np.mean(full))
     assert run_tuning(tune, tmp_path / "a", execution)["finetune"] == chosen
     unpruned = run_tuning(replace(tune, prune=False, trials=3), tmp_path / "b", execution)
     unpruned = unpruned["finetune"]
