@@ -17,7 +17,6 @@ Every method must have something to tune (not ``cv``).
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -25,13 +24,7 @@ from pathlib import Path
 from sim.experiment import ExperimentConfig
 from sim.experiment.bench import PRESETS, BenchConfig
 from sim.experiment.config import Execution
-from sim.experiment.tuning import run_tuning
-
-
-def trial_cpu(folder: Path, method: str) -> float:
-    """The CPU seconds of every trial job of ``method`` under the tuning folder ``folder``."""
-    paths = (folder / "trials" / method).glob("trial_*/jobs/*/seed_*/result.json")
-    return sum(json.loads(path.read_text())["cpu_seconds"] for path in paths)
+from sim.experiment.tuning import run_tuning, trial_results
 
 
 def main() -> None:
@@ -66,7 +59,10 @@ def main() -> None:
     )
     total = {True: 0.0, False: 0.0}
     for method in methods:
-        cpu = {prune: trial_cpu(folder, method) for prune, folder in folders.items()}
+        cpu = {
+            prune: sum(r["cpu_seconds"] for r in trial_results(folder, method))
+            for prune, folder in folders.items()
+        }
         total = {prune: total[prune] + cpu[prune] for prune in total}
         pruned, full = chosen[True][method], chosen[False][method]
         count = sum(t["pruned"] for t in pruned["trials"])

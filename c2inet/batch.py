@@ -43,6 +43,11 @@ class Batch:
         return self.per_scene_mean(step).clamp_min(MIN_SCALE)[self.scene_of, None]
 
     @property
+    def last_rel(self) -> torch.Tensor:
+        """(N, 2) each agent's last observed displacement over its scale: where decoding starts."""
+        return self.obs_rel[-1] / self.scale
+
+    @property
     def agent_counts(self) -> torch.Tensor:
         return self.scene_start[1:] - self.scene_start[:-1]
 

@@ -129,7 +129,7 @@ class Predictor(nn.Module):
 
     def decode(self, batch: Batch, cond: torch.Tensor) -> torch.Tensor:
         """Normalised future displacements (12, S, N, 2) from conditions (S, N, D)."""
-        return self.backbone.decode(cond, batch.obs_rel[-1] / batch.scale)
+        return self.backbone.decode(cond, batch.last_rel)
 
     def noise(self, samples: int, agents: int) -> torch.Tensor:
         """The N(0, I) part of ``samples`` conditions of ``agents`` agents, (S, N, latent)."""
@@ -171,7 +171,7 @@ class Predictor(nn.Module):
         samples, agents = noise.shape[:2]
         noisy = torch.cat([context[:agents].expand(samples, agents, -1), noise], -1)
         rows = torch.cat([noisy.flatten(0, 1), self._noise_free(context[point_of])])
-        last_rel = batch.obs_rel[-1] / batch.scale
+        last_rel = batch.last_rel
         last = torch.cat([last_rel[:agents].repeat(samples, 1), last_rel[point_of]])
         out = self.backbone.decode(rows[None], last)[:, 0]
         sampled = samples * agents
@@ -397,7 +397,7 @@ class C2INetModel(Predictor):
     ) -> tuple[torch.Tensor, torch.Tensor | None]:
         """Future displacements of the batch (12, S, N, 2) and, given anchors, of their latents
         (12, A, 2): the anchors ride in the batch's own decoder call as extra rows."""
-        last_rel = batch.obs_rel[-1] / batch.scale
+        last_rel = batch.last_rel
         if anchors is None:
             return self.backbone.decode(cond, last_rel), None
         samples, agents = cond.shape[:2]

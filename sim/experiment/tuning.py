@@ -281,13 +281,17 @@ def _trial_record(trial) -> dict[str, Any]:
     }
 
 
+def trial_results(out: Path, method: str) -> list[dict[str, Any]]:
+    """The ``result.json`` of every finished trial job of ``method`` under the tuning folder
+    ``out``, pruned ones included."""
+    paths = (out / "trials" / method).glob("trial_*/jobs/*/seed_*/result.json")
+    return [json.loads(path.read_text()) for path in paths]
+
+
 def trial_seconds(out: Path, method: str) -> float:
     """The mean CPU seconds of ``method``'s finished trials under the tuning folder ``out`` that
     learnt every task (a pruned one's is part of a trial; 0 before the first): what orders the
     trials and evaluation jobs, longest first."""
-    results = [
-        json.loads(path.read_text())
-        for path in (out / "trials" / method).glob("trial_*/jobs/*/seed_*/result.json")
-    ]
+    results = trial_results(out, method)
     spent = [r.get("cpu_seconds") or 0.0 for r in results if len(r["summaries"]) == len(r["tasks"])]
     return float(np.mean(spent)) if spent else 0.0
