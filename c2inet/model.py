@@ -23,7 +23,7 @@ from c2inet.backbones import BACKBONES
 from c2inet.batch import Batch, make_batch, variety_loss
 from c2inet.data import OBS_LEN, Windows
 from c2inet.device import model_device
-from c2inet.options import Tunable, choose, require
+from c2inet.options import Choice, Tunable, choose, require
 from c2inet.prior import (
     GaussianMixture,
     LearnablePrior,
@@ -48,6 +48,14 @@ LATENT_SPACE = {
     "model.likelihood_std": Tunable(0.03, 0.3, log=True),
     "model.beta_c": Tunable(0.1, 3.0, log=True),
     "model.beta_z": Tunable(0.1, 3.0, log=True),
+}
+# C2INet's and its control's: the latent models' weights and the knobs its mechanism depends
+# on (free bits of KL_C, the MI floor, the stopped gradient), so tuning, not a hand, sets them
+C2INET_SPACE = {
+    **LATENT_SPACE,
+    "model.free_bits_c": Tunable(0.0, 8.0),
+    "model.mi_floor_c": Tunable(0.0, 2.0),
+    "model.c_detached": Choice((True, False)),
 }
 
 

@@ -116,3 +116,17 @@ class Tunable:
 
     def holds(self, value: Any) -> bool:
         return self.low <= value <= self.high
+
+
+@dataclass(frozen=True)
+class Choice:
+    """A set of values a tuner may choose one of for an option (a switch, a named design)."""
+
+    values: tuple[Any, ...]
+
+    def __post_init__(self):
+        if len(self.values) < 2 or len(set(self.values)) != len(self.values):
+            raise ValueError(f"a choice needs two distinct values or more, got {self.values}")
+
+    def holds(self, value: Any) -> bool:
+        return value in self.values

@@ -1,8 +1,11 @@
-"""Seed statistics for a fair comparison: a 95 % interval per cell and a paired test per method.
+"""Seed statistics for a fair comparison: a 95 % interval per cell, a paired test per method,
+Holm's correction over a board of tests, and how many seeds a paired interval needs.
 
 Methods are compared on the same seeds and the same data, so the test is paired over seeds
 (Student's paired t-test, ``scipy.stats.ttest_rel``); the interval is Student's t interval of
 the mean. With one seed there is no spread: both are ``None`` rather than a false certainty.
+A board tests every method against one reference, so its p-values are adjusted together
+(Holm's step-down, ``statsmodels``), which holds the chance of any false claim at ``ALPHA``.
 """
 
 from __future__ import annotations
@@ -59,3 +62,50 @@ def paired(method: list[float], reference: list[float]) -> Paired:
 
             p_value = float(stats.ttest_rel(a, b).pvalue)
     return Paired(float(difference.mean()), interval(difference), p_value)
+
+
+def holm(p_values: list[float | None]) -> list[float | None]:
+    """Holm's adjusted p-values of a family of tests (None, a test without spread, stays None
+    and does not count in the family)."""
+    tested = [i for i, p in enumerate(p_values) if p is not None]
+    adjusted: list[float | None] = [None] * len(p_values)
+    if not tested:
+        return adjusted
+    from statsmodels.stats.multitest import multipletests
+
+    _, corrected, _, _ = multipletests([p_values[i] for i in tested], ALPHA, method="holm")
+    for i, p in zip(tested, corrected, strict=True):
+        adjusted[i] = float(p)
+    return adjusted
+
+
+def interval_width(values: np.ndarray | list[float], level: float = LEVEL) -> float:
+    """The width of Student's t interval of the mean of ``values``; infinite below two."""
+    bounds = interval(values, level)
+    return float("inf") if bounds is None else bounds[1] - bounds[0]
+
+
+def seeds_to_narrow(
+    differences: np.ndarray | list[float], width: float, most: int, least: int = 3
+) -> int:
+    """How many seeds in all a paired comparison should have for the 95 % interval of its mean
+    difference to be narrower than ``width``: ``len(differences)`` once it is (or at ``most``),
+    else the projection from the spread so far (Student's t at that size), at least one more and
+    at most ``most``. Below ``least`` seeds the spread is not trusted: ``least``."""
+    values = np.asarray(differences, dtype=float)
+    n = len(values)
+    if n >= most or (n >= least and interval_width(values) < width):
+        return n
+    if n < least:
+        return least
+    from scipy import stats
+
+    sd = float(values.std(ddof=1))
+
+    def projected(size: int) -> float:  # the interval's width at ``size`` seeds, this spread
+        return 2 * float(stats.t.ppf(0.5 + LEVEL / 2, size - 1)) * sd / size**0.5
+
+    needed = n + 1
+    while needed < most and projected(needed) >= width:
+        needed += 1
+    return needed

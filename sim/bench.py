@@ -1,10 +1,12 @@
 """``python -m sim.bench PRESET``: the fair benchmark, tuning then evaluation then a leaderboard.
 
 Every method gets the same number of Optuna trials over the learning rate and its own knobs,
-scored on validation data of a separate tuning curriculum (never a test split, never a later
-task), then runs with its chosen settings over the same seeds and data as every other method.
-The leaderboard ranks the point prediction (K = 1) with 95 % intervals and a paired test
-against fine-tuning, beside forgetting, memory and CPU cost. Resumable like a run.
+scored on validation data of a separate tuning curriculum (never a test split, never a value
+evaluated), then runs with its chosen settings over seeds that each draw their own data, the
+same for every method. The leaderboard ranks the point prediction (K = 1) with 95 % intervals
+and Holm-adjusted paired tests against fine-tuning, beside forgetting, memory and CPU cost; the
+references (joint, joint from scratch) stand apart. Resumable like a run. The protocol lives in
+``sim.studies.benchmark``.
 """
 
 from __future__ import annotations
@@ -16,14 +18,22 @@ from c2inet.errors import InputError, did_you_mean
 from sim.cli import add_experiment_options, execution_of, experiment_options, interrupted, parse
 from sim.cli import parser as command_parser
 from sim.experiment import ExperimentConfig
-from sim.experiment.bench import PRESETS, BenchConfig, leaderboard_markdown, run_bench
-from viz.cli import bounded_int, guarded
+from sim.studies.benchmark import (
+    PRESETS,
+    REFERENCE_SEEDS,
+    REPLAY_BUDGET,
+    SEEDS,
+    TRIALS,
+    BenchConfig,
+    run_bench,
+)
+from sim.studies.leaderboard import leaderboard_markdown
+from viz.cli import bounded_float, bounded_int, guarded
 
 
 def presets() -> str:
     return "\n".join(
-        f"  {name:<9} {p.scenario}  (tuned on {p.tune_scenario or 'its first task'}): "
-        f"{p.description}"
+        f"  {name:<9} {p.scenario}  (tuned on {p.tune_scenario}): {p.description}"
         for name, p in PRESETS.items()
     )
 
@@ -32,6 +42,8 @@ def presets() -> str:
 def main(argv: list[str] | None = None) -> int:
     examples = (
         "  python -m sim.bench radius --methods all --jobs 2\n"
+        "  python -m sim.bench radius --methods all --jobs 2 --resume \\\n"
+        "      --compare c2inet-online,finetune   # then seeds until the pair is decided\n"
         "  python -m sim.bench --scenario crowd_noise_0.1..0.3 --methods finetune,ewc \\\n"
         "      --trials 4 --seeds 3 --quick --out benchmarks_out/smoke\n"
         f"presets:\n{presets()}"
@@ -39,15 +51,45 @@ def main(argv: list[str] | None = None) -> int:
     p = command_parser("sim.bench", __doc__.splitlines()[0], examples)
     p.add_argument("preset", nargs="?", help=f"one of {', '.join(PRESETS)} (or --scenario)")
     add_experiment_options(p, methods="all", record=True)
-    p.set_defaults(seeds=5)
+    p.set_defaults(seeds=SEEDS)
     p.add_argument(
-        "--trials", type=bounded_int(1, 1000), default=6, help="tuning trials per method (6)"
+        "--trials",
+        type=bounded_int(1, 1000),
+        default=TRIALS,
+        help=f"tuning trials per method ({TRIALS})",
     )
     p.add_argument(
         "--replay-budget",
-        type=bounded_int(1, 1_000_000),
+        type=bounded_int(0, 1_000_000),
+        default=REPLAY_BUDGET,
         metavar="SCENES",
-        help="give every replay method (coresets, A-GEM, DER++) this many scenes in all",
+        help=f"scenes every replay method (coresets, A-GEM, DER++) keeps in all ({REPLAY_BUDGET}; "
+        "0: each its own default)",
+    )
+    p.add_argument(
+        "--reference-seeds",
+        type=bounded_int(1, 1000),
+        default=REFERENCE_SEEDS,
+        help=f"seeds of each reference, joint and joint-scratch ({REFERENCE_SEEDS})",
+    )
+    p.add_argument(
+        "--compare",
+        metavar="A,B",
+        help="the decisive pair: add seeds to these two until the 95 %% interval of their "
+        "paired difference is narrower than --width",
+    )
+    p.add_argument(
+        "--width",
+        type=bounded_float(1e-6, 1.0),
+        default=0.01,
+        metavar="METRES",
+        help="the decisive pair's interval width to reach (0.01 m)",
+    )
+    p.add_argument(
+        "--max-seeds",
+        type=bounded_int(2, 1000),
+        default=30,
+        help="the decisive pair's most seeds (30)",
     )
     p.add_argument(
         "--prune",
@@ -72,10 +114,21 @@ def main(argv: list[str] | None = None) -> int:
         preset = PRESETS[args.preset]
         args.scenario = preset.scenario
         tune_scenario = tune_scenario or preset.tune_scenario
-    out = args.out or Path("bench") / (args.preset or "custom")
+    name = args.preset or "custom"
+    out = args.out or Path("bench") / name
     base = ExperimentConfig(args.scenario, **experiment_options(args))
     bench = BenchConfig(
-        base, tune_scenario, args.trials, args.storage, args.replay_budget, args.prune
+        base,
+        name,
+        tune_scenario,
+        args.trials,
+        args.storage,
+        args.replay_budget or None,
+        args.prune,
+        args.reference_seeds,
+        tuple(args.compare.split(",")) if args.compare else (),
+        args.width,
+        args.max_seeds,
     )
     try:
         board = run_bench(

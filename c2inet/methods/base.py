@@ -28,7 +28,7 @@ from c2inet.data import Windows
 from c2inet.device import model_device
 from c2inet.errors import did_you_mean
 from c2inet.model import LossOutput, ModelConfig, Predictor
-from c2inet.options import Tunable, build
+from c2inet.options import Choice, Tunable, build
 
 METHODS: dict[str, type[Method]] = {}
 
@@ -49,6 +49,7 @@ class TaskContext:
     output: torch.Tensor | None = None  # its predicted normalised displacements (12, S, N, 2)
     loss: torch.Tensor | None = None  # the step's loss so far
     parts: dict[str, float] = field(default_factory=dict)  # the loss's parts, for the logs
+    tasks: int | None = None  # the curriculum's length, where it is known (not in a stream)
 
     @property
     def device(self) -> torch.device:
@@ -81,7 +82,7 @@ class Method:
     inert: ClassVar[dict[str, Any] | None] = None
     # what a tuner searches beside the learning rate (``TRAIN_SPACE``): the method's own
     # options by name, shared scopes as ``model.KEY``; every method gets the same trials
-    search_space: ClassVar[dict[str, Tunable]] = {}
+    search_space: ClassVar[dict[str, Tunable | Choice]] = {}
 
     def __init_subclass__(cls, register: bool = True, **kwargs):
         """Defining a subclass registers it under its name (``register=False``: not)."""

@@ -9,14 +9,14 @@ No hooks. Example: ``--methods c2inet-online,c2inet-noqueue``
 import torch
 
 from c2inet.methods.base import Method
-from c2inet.model import LATENT_SPACE, C2INetModel
+from c2inet.model import C2INET_SPACE, C2INetModel
 
 
 class C2INetNoQueue(Method):
     """C2INet's model with the prior queue held at N(0, I): the control for the queue."""
 
     name = "c2inet-noqueue"
-    search_space = LATENT_SPACE
+    search_space = C2INET_SPACE
 
     def build_model(self) -> torch.nn.Module:
         return C2INetModel(self.model_config)

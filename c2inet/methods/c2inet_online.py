@@ -26,7 +26,7 @@ import torch
 
 from c2inet.batch import make_batch
 from c2inet.methods.base import Method, TaskContext
-from c2inet.model import LATENT_SPACE, Anchors, C2INetModel, make_anchors
+from c2inet.model import C2INET_SPACE, Anchors, C2INetModel, make_anchors
 from c2inet.options import require
 from c2inet.prior import GaussianMixture, QueueConfig, mix, moment_match
 
@@ -49,7 +49,7 @@ class C2INetOnline(Method):
     """C2INet with the online prior queue (Algorithm 1)."""
 
     name = "c2inet-online"
-    search_space = LATENT_SPACE
+    search_space = C2INET_SPACE
     Options = C2INetOptions
 
     def __init__(self, model_config, options: dict[str, Any] | None = None):

@@ -45,3 +45,9 @@ class MoG(Method):
 
     def after_task(self, ctx: TaskContext) -> None:
         ctx.model.queue.freeze(next_owner=ctx.index + 1)
+
+    def memory_floats(self, model: torch.nn.Module) -> int:
+        """The frozen Gaussians of the finished tasks: kept in the model's state, but memory
+        that grows with every task, as C2INet's queue does."""
+        frozen = model.queue.frozen
+        return frozen.means.numel() + frozen.logvars.numel() + frozen.weights.numel()

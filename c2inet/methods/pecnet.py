@@ -81,6 +81,8 @@ class EndpointCVAE(Predictor):
         z = self.options.sigma * noise
         return to_positions(batch, self.future(context, z))
 
+    natural_point = True  # scored at z = 0, PECNet's own point, not the mean of its draws
+
     def point(self, batch: Batch) -> torch.Tensor:
         context = self.context(batch)
         return self.future(context, context.new_zeros(1, len(context), self.options.latent))[:, 0]

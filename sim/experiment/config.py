@@ -8,7 +8,7 @@ input raising ``InputError``.
 from __future__ import annotations
 
 import os
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 from typing import Any
@@ -26,6 +26,7 @@ from viz.live import viewer_url
 from viz.loggers import LOGGERS, WANDB_MODES
 
 DEFAULT_METHODS = ("c2inet-online", "finetune", "cv")
+SHARED_SCOPES = ("data", "model", "train")  # settings scopes besides the methods' own
 # options that have a flag of their own: a --set of them would be silently overridden
 FLAG_OPTIONS = (
     *(("train", "epochs"), ("train", "k"), ("train", "seed"), ("train", "device")),
@@ -76,7 +77,7 @@ class ExperimentConfig:
         if self.backbone not in BACKBONES:
             raise InputError(f"backbone {self.backbone!r}: expected one of {sorted(BACKBONES)}")
         for scope in self.settings:
-            if scope not in ("data", "model", "train", *self.methods):
+            if scope not in (*SHARED_SCOPES, *self.methods):
                 raise InputError(
                     f"--set: scope {scope!r} is not data, model, train or a chosen method"
                 )
@@ -119,6 +120,13 @@ class ExperimentConfig:
 
     def method(self, name: str):
         return get_method(name)(self.model_config(), self.settings.get(name))
+
+    def only(self, method: str, settings: dict[str, dict[str, Any]] | None = None):
+        """This experiment for ``method`` alone, with ``settings`` (default: its own), less
+        the scopes of the other methods."""
+        settings = self.settings if settings is None else settings
+        kept = {s: v for s, v in settings.items() if s in (*SHARED_SCOPES, method)}
+        return replace(self, methods=(method,), settings=kept)
 
     def jobs(self) -> list[Job]:
         return [Job(m, s) for m in self.methods for s in range(self.seeds)]

@@ -5,8 +5,9 @@ hooks: the steps of the second task carry what a method adds once it has a past 
 teacher's forward pass, projected gradients), and its task and epoch hooks (Fisher, buffers,
 Eq 8 fits) are timed as they run. One evaluation and one set of diagnostics follow; the run's
 cost follows from how often each happens (steps per epoch, epochs, evaluations of every task
-after every task, validation of the tasks seen). An estimate: later tasks and a busy machine
-change it.
+after every task, validation of the tasks seen). Timed in CPU seconds of this process (one
+torch thread), so a machine busy with other work does not inflate it; the wall time follows
+from the jobs run at once. An estimate: later tasks change it.
 """
 
 from __future__ import annotations
@@ -36,10 +37,10 @@ EPOCH_HOOKS = 2  # epoch hooks timed per task: C2INet fits Eq 8 every second epo
 
 
 def _seconds(work: Callable[[], object]) -> float:
-    """The wall time of one call of ``work``."""
-    start = time.perf_counter()
+    """The CPU seconds of one call of ``work`` (this process's: one torch thread)."""
+    start = time.process_time()
     work()
-    return time.perf_counter() - start
+    return time.process_time() - start
 
 
 def training_steps(method: Method, tasks: list[Task], batch_scenes: int) -> list[int]:
@@ -48,6 +49,8 @@ def training_steps(method: Method, tasks: list[Task], batch_scenes: int) -> list
     sizes = [len(t.train) for t in tasks]
     if method.sees_old_tasks:
         sizes = list(itertools.accumulate(sizes))
+    if getattr(getattr(method, "options", None), "final_only", False):  # joint-scratch: the last
+        sizes = [0] * (len(sizes) - 1) + sizes[-1:]
     return [math.ceil(size / batch_scenes) for size in sizes]
 
 
@@ -56,11 +59,13 @@ def task_seconds(
 ) -> tuple[float, float]:
     """Train on task ``ctx`` as a job does, briefly: its task hooks, :data:`STEPS` timed steps
     and the first epoch hooks. Returns (seconds a step, seconds of hooks for ``epochs``)."""
-    started = time.perf_counter()
+    started = time.process_time()
     ctx.model.train()
     method.before_task(ctx)
     data = method.training_windows(ctx)
-    hooks = time.perf_counter() - started
+    hooks = time.process_time() - started
+    if not len(data):  # a task it does not train on (joint-scratch's final_only): time a step
+        data = ctx.train
     times = [
         _seconds(lambda b=b: train_step(method, ctx, b, train))
         for b in itertools.islice(batches(data, train.batch_scenes, ctx.rng, ctx.device), STEPS + 1)
@@ -92,7 +97,7 @@ def method_seconds(config, name: str, tasks: list[Task], warm_up: bool = False) 
             timed = []  # (seconds a step, seconds of hooks) of the first task, then the second
             for i, task in enumerate(tasks[:2]):
                 seen = [t.train for t in tasks[:i]] if method.sees_old_tasks else []
-                ctx = TaskContext(i, task.name, task.train, model, optimiser, rng, seen)
+                ctx = TaskContext(i, task.name, task.train, model, optimiser, rng, seen, tasks=n)
                 timed.append(task_seconds(method, ctx, train, config.epochs))
             for i, steps in enumerate(training_steps(method, tasks, train.batch_scenes)):
                 per_step, hooks = timed[min(i, len(timed) - 1)]
@@ -102,7 +107,7 @@ def method_seconds(config, name: str, tasks: list[Task], warm_up: bool = False) 
                 total += val * config.epochs / train.val_every * n * (n + 1) / 2
 
         def evaluation() -> None:
-            evaluate_all(model, first.test, config.k, 0)
+            evaluate_all(model, first.test, config.k, 0, variants=train.test_rules)
 
         def diagnostics() -> None:
             if train.diagnostics:
@@ -111,7 +116,8 @@ def method_seconds(config, name: str, tasks: list[Task], warm_up: bool = False) 
         if warm_up:
             evaluation()
             diagnostics()
-        total += _seconds(evaluation) * n * n + _seconds(diagnostics) * n * (n + 1) / 2
+        evaluations = n * n if train.eval_unseen else n * (n + 1) / 2
+        total += _seconds(evaluation) * evaluations + _seconds(diagnostics) * n * (n + 1) / 2
     return total
 
 
@@ -126,11 +132,15 @@ def job_seconds(config, tasks: list[Task]) -> dict[str, float]:
 def run_seconds(config, each: dict[str, float], parallel: int) -> float:
     """The estimated wall time of every job of ``config``, ``parallel`` at a time, each job of
     method m taking ``each[m]`` (:func:`job_seconds`) and the longest taken first."""
-    jobs = sorted(
-        (each[name] for name in config.methods for _ in range(config.seeds)), reverse=True
+    return lanes_seconds(
+        [each[name] for name in config.methods for _ in range(config.seeds)], parallel
     )
+
+
+def lanes_seconds(jobs: list[float], parallel: int) -> float:
+    """The wall time of jobs of these seconds, ``parallel`` at a time, the longest first."""
     lanes = [0.0] * max(1, parallel)
-    for seconds in jobs:  # longest first, each to the least loaded worker
+    for seconds in sorted(jobs, reverse=True):  # longest first, each to the least loaded worker
         lanes[lanes.index(min(lanes))] += seconds
     return max(lanes)
 

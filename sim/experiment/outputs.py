@@ -365,9 +365,11 @@ def write_outputs(
     wall: float,
     argv: list[str],
     label: str = "default",
+    figures: bool = True,
 ) -> dict[str, Any]:
-    """metrics.json, matrices, run card, report, figures and the merged recording; returns the
-    metrics. ``truth``: the run's own recorder (None when nothing is recorded)."""
+    """metrics.json, matrices, run card, report, figures (unless not ``figures``) and the merged
+    recording; returns the metrics. ``truth``: the run's own recorder (None when nothing is
+    recorded)."""
     tasks = [t.name for t in curriculum.inputs.tasks]
     labels = curriculum.labels
     summary = summarise_jobs(config, results)
@@ -421,8 +423,25 @@ def write_outputs(
     }
     report = markdown_report(config.scenario, labels, config.k, summary, run)
     write_text_atomic(out / "report.md", report)
+    if figures:
+        draw_figures(out, curriculum, summary, results)
+    if truth is not None:
+        truth.log_run_card(f"{report}\n## Run card\n\n```json\n{card}\n```\n")
+        truth.close()
+        if config.record:
+            parts = [out / TRUTH_PART]
+            parts += [r.job.folder(out) / "recording.rrd" for r in results if r.predictions]
+            merge_recordings(parts, out / "recording.rrd")
+            parts[0].unlink()
+    return metrics
+
+
+def draw_figures(out: Path, curriculum: Curriculum, summary: dict, results: list[JobResult]):
+    """A run's figures: every method's error matrix and per-task ADE, the average over seen
+    tasks, and the sample predictions."""
     from viz import figures  # matplotlib: imported by the run that draws, not by every command
 
+    labels = curriculum.labels
     families = [s.family.name for s in curriculum.specs]
     for name, result in summary.items():
         matrix = out / "figures" / f"matrix_{name}.png"
@@ -433,15 +452,6 @@ def write_outputs(
     if drawn:
         samples = {show.task: show.scenes for show in curriculum.inputs.showcases}
         figures.prediction_grid(samples, drawn, out / "figures" / "predictions.png")
-    if truth is not None:
-        truth.log_run_card(f"{report}\n## Run card\n\n```json\n{card}\n```\n")
-        truth.close()
-        if config.record:
-            parts = [out / TRUTH_PART]
-            parts += [r.job.folder(out) / "recording.rrd" for r in results if r.predictions]
-            merge_recordings(parts, out / "recording.rrd")
-            parts[0].unlink()
-    return metrics
 
 
 def _window_counts(task) -> dict[str, int]:

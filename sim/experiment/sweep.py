@@ -157,14 +157,20 @@ Planned = tuple[str, ExperimentConfig, Path, Curriculum]  # label, configuration
 
 
 def plan(
-    label: str, config: ExperimentConfig, folder: Path, execution: Execution, resume: bool
+    label: str,
+    config: ExperimentConfig,
+    folder: Path,
+    execution: Execution,
+    resume: bool,
+    curriculum: Curriculum | None = None,
 ) -> Planned:
-    """Claim ``folder`` for one experiment of a set and prepare its data. Resuming a set that
-    was stopped before it claimed every folder starts the unclaimed ones afresh (a folder of
-    ours without ``config.json`` holds no finished work; anything else is refused)."""
+    """Claim ``folder`` for one experiment of a set and prepare its data (or take
+    ``curriculum``, prepared for an experiment of the same scenario, seed and data). Resuming a
+    set that was stopped before it claimed every folder starts the unclaimed ones afresh (a
+    folder of ours without ``config.json`` holds no finished work; anything else is refused)."""
     claimed = (folder / "config.json").is_file()
     claim(folder, config, execution, resume and claimed, overwrite=resume and not claimed)
-    return label, config, folder, prepare(config, execution)
+    return label, config, folder, curriculum or prepare(config, execution)
 
 
 def run_together(
@@ -173,10 +179,12 @@ def run_together(
     resume: bool,
     argv: list[str],
     costs: list[float] | None = None,
+    figures: bool = True,
 ) -> list[tuple[dict, list[JobResult]]]:
     """Run the jobs of several experiments together on one backend, then write each one's
     outputs in its folder; returns each one's metrics and job results, in order. ``costs``:
-    the expected seconds of one job of each experiment, so the longest start first."""
+    the expected seconds of one job of each experiment, so the longest start first;
+    ``figures``: also draw each one's figures (a benchmark's many one-seed runs do not)."""
     started = time.perf_counter()
     items = [(i, job) for i, (_, config, _, _) in enumerate(planned) for job in config.jobs()]
     shared = [(config, curriculum.inputs, folder) for _, config, folder, curriculum in planned]
@@ -201,7 +209,7 @@ def run_together(
         path = folder / TRUTH_PART
         truth = record_truth(config, curriculum, path, None) if config.record else None
         metrics = write_outputs(
-            folder, config, execution, curriculum, mine, truth, wall, argv, label
+            folder, config, execution, curriculum, mine, truth, wall, argv, label, figures
         )
         done.append((metrics, mine))
     return done

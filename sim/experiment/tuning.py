@@ -41,7 +41,7 @@ from c2inet.errors import InputError
 from c2inet.files import write_text_atomic
 from c2inet.methods.base import get_method
 from c2inet.metrics import average_seen
-from c2inet.options import Tunable
+from c2inet.options import Choice, Tunable
 from c2inet.trainer import TRAIN_SPACE, Result, Task
 from sim.experiment.config import Execution, ExperimentConfig
 from sim.experiment.curriculum import Curriculum, JobInputs
@@ -61,6 +61,9 @@ class TuneConfig:
     storage: str | None = None  # an Optuna storage URL; default: SQLite beside the run
     prune: bool = False  # stop trials worse than the median of the finished ones
     warmup_tasks: int = 1  # tasks after which no trial is stopped (Optuna's n_warmup_steps)
+    # what the studies' names start with: a benchmark's key, so that a shared storage never
+    # mixes the trials of two benchmarks (or two protocols) under one method's name
+    study_prefix: str = ""
 
     def __post_init__(self):
         if self.trials < 1:
@@ -69,7 +72,7 @@ class TuneConfig:
             raise InputError(f"warmup tasks must be at least 0, got {self.warmup_tasks}")
 
 
-def search_space(method: str) -> dict[str, Tunable]:
+def search_space(method: str) -> dict[str, Tunable | Choice]:
     """The options a tuner searches for ``method``: none for a method that does not train."""
     cls = get_method(method)
     return {**TRAIN_SPACE, **cls.search_space} if cls.trains else {}
@@ -125,7 +128,9 @@ def _round_size(finished: int, trials: int, prune: bool) -> int:
     return 1
 
 
-def _defaults(method: str, space: dict[str, Tunable], base: ExperimentConfig) -> dict[str, Any]:
+def _defaults(
+    method: str, space: dict[str, Tunable | Choice], base: ExperimentConfig
+) -> dict[str, Any]:
     """The values the base configuration gives the searched options: the first trial."""
     sources = {
         "train": base.train_config(),
@@ -144,10 +149,12 @@ def _finite(value: float) -> float | None:
     return value if math.isfinite(value) else None
 
 
-def _distribution(space: Tunable):
-    """The Optuna distribution of one searched range."""
-    from optuna.distributions import FloatDistribution, IntDistribution
+def _distribution(space: Tunable | Choice):
+    """The Optuna distribution of one searched range or choice."""
+    from optuna.distributions import CategoricalDistribution, FloatDistribution, IntDistribution
 
+    if isinstance(space, Choice):
+        return CategoricalDistribution(space.values)
     if space.integer:
         return IntDistribution(int(space.low), int(space.high), log=space.log)
     return FloatDistribution(space.low, space.high, log=space.log)
@@ -166,8 +173,9 @@ def stop_bounds(curves: list[list[float]], tasks: int, warmup: int) -> tuple[flo
 
 
 # what a trial's objective (the final point-prediction ADE) never reads, so trials skip it: the
-# diagnostics, the per-epoch validation curves and the latent models' other test-time rules
-TRIAL_TRAIN = {"diagnostics": False, "val_every": 0, "test_rules": False}
+# diagnostics, the per-epoch validation curves, the latent models' other test-time rules and the
+# tasks not yet learnt
+TRIAL_TRAIN = {"diagnostics": False, "val_every": 0, "test_rules": False, "eval_unseen": False}
 
 
 def run_tuning(
@@ -188,7 +196,10 @@ def run_tuning(
     studies = {}
     for method in tuned:
         study = optuna.create_study(
-            study_name=method, storage=storage, direction="minimize", load_if_exists=True
+            study_name=f"{tune.study_prefix}{method}",
+            storage=storage,
+            direction="minimize",
+            load_if_exists=True,
         )
         for trial in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
             study.tell(trial.number, state=TrialState.FAIL)  # killed: asked again below
@@ -206,7 +217,7 @@ def run_tuning(
             complete = finished(method, (TrialState.COMPLETE,))
             curves = [_curve(t) for t in complete if len(t.intermediate_values) == tasks]
             settings["train"]["stop_above"] = stop_bounds(curves, tasks, tune.warmup_tasks)
-        config = replace(base, methods=(method,), settings=layered(base, settings))
+        config = base.only(method, layered(base, settings))
         folder = out / "trials" / method / f"trial_{index:03d}"
         resumed = (folder / "config.json").is_file()  # a trial a killed tuning began
         label, config, folder, curriculum = plan(

@@ -1,10 +1,11 @@
-"""The seed statistics: intervals, and a paired test that finds a planted difference only."""
+"""The seed statistics: intervals, a paired test that finds a planted difference only, Holm's
+correction over a board, and how many seeds a paired interval needs."""
 
 import numpy as np
 import pytest
 
 from c2inet.report import compare, comparison_rows, summarise
-from c2inet.significance import interval, paired
+from c2inet.significance import holm, interval, interval_width, paired, seeds_to_narrow
 from c2inet.trainer import VARIANT_METRICS
 
 
@@ -52,3 +53,33 @@ def test_the_comparison_marks_only_the_method_that_differs():
     rows = comparison_rows(comparison, "ade_k1")
     assert rows[2][0] == "better" and rows[2][3].endswith("*") and not rows[3][3].endswith("*")
     assert compare({"better": methods["better"]}) == {}  # no reference, no comparison
+
+
+def test_holm_turns_a_borderline_p_value_of_a_board_into_a_non_significant_one():
+    """A p of 0.03 alone is significant; as the smallest of three it is multiplied by 3, and
+    a larger one is held to at least the smaller's adjusted value (Holm's step-down)."""
+    assert holm([0.03]) == [pytest.approx(0.03)]
+    adjusted = holm([0.03, 0.2, None, 0.04])
+    assert adjusted[0] == pytest.approx(0.09) and adjusted[0] > 0.05  # 3 tests: 3 x 0.03
+    assert adjusted[3] == pytest.approx(0.09)  # 2 x 0.04 = 0.08, held to the step before
+    assert adjusted[1] == pytest.approx(0.2) and adjusted[2] is None
+    assert holm([None, None]) == [None, None]
+
+
+def test_seeds_are_added_until_the_interval_is_narrow_and_not_after():
+    rng = np.random.default_rng(3)
+    noisy = rng.normal(0.0, 0.02, 8)
+    assert interval_width(noisy) > 0.01
+    needed = seeds_to_narrow(noisy, 0.01, 1000)
+    assert 8 < needed < 1000
+    narrow = rng.normal(0.0, 0.002, 8)
+    assert interval_width(narrow) < 0.01 and seeds_to_narrow(narrow, 0.01, 100) == 8
+    assert seeds_to_narrow(noisy, 0.01, 12) == 12  # at most the maximum
+    assert seeds_to_narrow(noisy, 0.01, 8) == 8  # the maximum reached: no more
+    assert seeds_to_narrow(noisy[:2], 0.01, 30) == 3  # too few to trust the spread
+    # the projection is the smallest size whose t interval at this spread is narrow enough
+    from scipy import stats
+
+    sd = noisy.std(ddof=1)
+    width = [2 * stats.t.ppf(0.975, n - 1) * sd / np.sqrt(n) for n in (needed - 1, needed)]
+    assert width[0] >= 0.01 > width[1]

@@ -11,10 +11,10 @@ from c2inet.errors import InputError
 from c2inet.trainer import Result
 from sim.bench import main
 from sim.experiment import ExperimentConfig
-from sim.experiment.bench import BenchConfig, estimate_bench
 from sim.experiment.config import Execution, Job
 from sim.experiment.jobs import JobResult, prepare
 from sim.experiment.tuning import TuneConfig, run_tuning, trial_seconds, validation_inputs
+from sim.studies.benchmark import BenchConfig, estimate_bench
 
 BAD_LR = 1e-5  # a default that barely trains in two epochs
 
@@ -47,7 +47,9 @@ def test_tuning_moves_a_bad_default_and_tries_it_first(tuned):
 
 def test_tuning_never_sees_a_test_split_or_a_later_task(tuned, tmp_path):
     other = bench_of("crowd_noise_0.1,0.5")  # another later task (so other test splits too)
-    assert other.tuning() == bench_of("crowd_noise_0.1,0.2").tuning()
+    same = bench_of("crowd_noise_0.1,0.2").tuning()
+    assert replace(other.tuning(), study_prefix="") == replace(same, study_prefix="")
+    assert other.tuning().study_prefix != same.study_prefix  # two benchmarks, never one study
     again = run_tuning(other.tuning(), tmp_path / "b", Execution(cache=tmp_path / "cache"))
     assert again == tuned
     execution = Execution(cache=tmp_path / "cache")
@@ -143,7 +145,9 @@ def test_the_command_ranks_every_method_and_resumes_to_the_same_leaderboard(tmp_
         assert (out / name).stat().st_size > 0
     assert "| 1 |" in (out / "leaderboard.md").read_text()
     assert main([*argv, "--resume"]) == 0
-    assert json.loads((out / "leaderboard.json").read_text()) == board
+    again = json.loads((out / "leaderboard.json").read_text())
+    assert again.pop("run")["calls"] == 2 and board.pop("run")["calls"] == 1
+    assert again == board
     capsys.readouterr()
     assert main(["cubic"]) == 2
     assert "preset 'cubic': unknown" in capsys.readouterr().err
@@ -154,6 +158,7 @@ def test_a_replay_budget_gives_every_replay_method_the_same_scenes():
         "crowd_noise_0.1..0.4", methods=("coresets", "agem", "derpp", "finetune"), quick=True
     )
     settings = BenchConfig(base, replay_budget=60).base.settings
+    assert settings.pop("train") == {"batch_scenes": 64}  # the protocol's batch
     assert settings == {
         "coresets": {"per_task": 20},  # 3 earlier tasks x 20 replayed at the last task
         "agem": {"per_task": 20},
@@ -235,8 +240,8 @@ def test_the_benchmark_estimate_times_a_trial_as_tuning_runs_it_and_adds_every_j
     """``estimate_bench``: a trial is timed on the tuning curriculum's validation data with what
     trials skip switched off, a job on the evaluated curriculum; the totals count every trial of
     every tuned method and every seed, and the wall time shares them over the jobs."""
-    from sim.experiment import bench as bench_module
-    from sim.experiment.estimate import run_seconds
+    from sim.experiment.estimate import lanes_seconds
+    from sim.studies import benchmark as bench_module
 
     timed = []
 
@@ -253,9 +258,12 @@ def test_the_benchmark_estimate_times_a_trial_as_tuning_runs_it_and_adds_every_j
     (trial_config, trial_tasks), (job_config, job_tasks) = timed
     assert trial_config.scenario == "crowd_noise_0.1" and job_config.scenario == base.scenario
     train = trial_config.train_config()
-    assert not train.diagnostics and not train.test_rules and train.val_every == 0
+    for config in (trial_config, job_config):  # both lean, as they run
+        train = config.train_config()
+        assert not train.diagnostics and not train.test_rules and train.val_every == 0
+        assert not train.eval_unseen and train.batch_scenes == 64
     assert all(task.test is task.val for task in trial_tasks) and len(job_tasks) == 2
     assert cost["trials"] == {"finetune": 3, "cv": 0}
     assert cost["tuning_cpu_seconds"] == 3 * 10.0
     assert cost["cpu_seconds"] == 3 * 10.0 + 2 * (20.0 + 20.0)
-    assert cost["wall_seconds"] == 30.0 / 2 + run_seconds(base, cost["job"], 2)
+    assert cost["wall_seconds"] == 30.0 / 2 + lanes_seconds([20.0] * 4, 2)
