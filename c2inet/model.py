@@ -456,6 +456,11 @@ class C2INetModel(Predictor):
         parts = {
             "nll": future.item(),
             "kl_c": kl_c.mean().item(),
+            # the share of scenes whose KL_C, above the free bits, has a gradient: where the
+            # queue's prior (Eq 17) shapes training
+            "kl_c_binding": (kl_c > cfg.free_bits_c).float().mean().item()
+            if cfg.free_bits_c
+            else 1.0,
             "kl_z": batch.per_scene_mean(kl_z).mean().item(),
         }
         if cfg.beta_x:  # the past reconstruction, only where it is weighted

@@ -205,6 +205,7 @@ DIAGNOSTIC_COLUMNS = (
     ("mi_xc", "MI(X;C)"),
     ("kl_c", "KL_C"),
     ("kl_z", "KL_Z"),
+    ("kl_c_binding", "KL_C binds"),
     ("c_effect", "C moves (m)"),
     ("ade_c_mean", "ADE C=mean"),
     ("ade_c_prior", "ADE C~prior"),

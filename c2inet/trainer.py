@@ -33,6 +33,7 @@ from c2inet.options import Tunable, check_range, require
 VARIANT_METRICS = ("ade", "fde", "ade_k1", "fde_k1", "ade_draw", "fde_draw")
 # wide enough that no tuned rate sat at a bound at batch 16 or 64 (docs/benchmark.md)
 TRAIN_SPACE = {"train.lr": Tunable(1e-4, 5e-2, log=True)}  # tuned for every method that trains
+LAST_EPOCH = ("kl_c_binding",)  # loss parts of a task's last epoch kept in its diagnostics
 POINT_SEED = 7_919  # offsets the seed of the point prediction's own draws from the K samples'
 
 
@@ -285,17 +286,21 @@ class ContinualTrainer:
             result.summaries.append({**method.summary(), "memory_floats": kept})
             if cfg.diagnostics:
                 seen_tasks = self.tasks[: i + 1]
-                result.diagnostics.append(
-                    diagnose(
-                        model, [t.test for t in seen_tasks], [t.value for t in seen_tasks], cfg.seed
-                    )
-                )
+                tests, values = [t.test for t in seen_tasks], [t.value for t in seen_tasks]
+                diagnosis = diagnose(model, tests, values, cfg.seed)
+                result.diagnostics.append({**diagnosis, **self._last_epoch(i)})
             if self.checkpoint_dir is not None:
                 self._save(model, optimiser, rng, i, result)
             self._task_end(i, model, result)
         result.history = self.history
         self.model = model
         return result
+
+    def _last_epoch(self, index: int) -> dict[str, float]:
+        """What training measured in task ``index``'s last epoch that says whether a clamped
+        term acted: the share of scenes whose KL_C had a gradient (``kl_c_binding``)."""
+        last = [r for r in self.history if r["task"] == index]
+        return {k: last[-1][k] for k in LAST_EPOCH if last and k in last[-1]}
 
     def _pruned(self, index: int, result: Result) -> bool:
         """Whether the run stops after task ``index`` (-1: before the first): its objective

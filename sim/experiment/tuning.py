@@ -240,7 +240,7 @@ def run_tuning(
                 asked.append((method, trial))
                 planned.append(plan_trial(method, index, trial.params))
         costs = [trial_seconds(out, method) for method, _ in asked]  # the longest start first
-        done = run_together(planned, execution, resume=True, argv=[], costs=costs)
+        done = run_together(planned, execution, resume=True, argv=[], costs=costs, figures=False)
         for (method, trial), (_, (job,)) in zip(asked, done, strict=True):  # in index order
             # a diverged trial is the worst there is, not a failure to ask again (same seed,
             # same history: the same settings, for ever)

@@ -354,6 +354,21 @@ def measured_cpu(out: Path, evaluation: Evaluation) -> float:
     return tuning + jobs
 
 
+def spent_so_far(out: Path) -> dict[str, Any]:
+    """What the earlier calls of a benchmark in ``out`` spent (``spent.json``): wall seconds,
+    calls, the decisive pair's seconds, the first call's estimate and the commits that ran
+    (the board of an earlier version, whose file lacked the last two, gives them)."""
+    spent = {"wall_seconds": 0, "calls": 0, "decisive_seconds": 0}
+    if (out / "spent.json").is_file():
+        spent |= json.loads((out / "spent.json").read_text())
+    if "commits" not in spent:
+        board = out / "leaderboard.json"
+        run = json.loads(board.read_text())["run"] if board.is_file() else {}
+        spent["estimate"] = run.get("estimate")
+        spent["commits"] = [run["commit"]] if run.get("commit") else []
+    return spent
+
+
 def run_bench(
     bench: BenchConfig,
     out: Path,
@@ -365,14 +380,16 @@ def run_bench(
     """Tune, evaluate and rank; returns the leaderboard (also written under ``out``)."""
     execution = execution or Execution()
     started, cpu_started = time.perf_counter(), time.process_time()
+    commit = git_commit()  # the code that runs, not what the checkout holds when it ends
     claim(out, bench, execution, resume, overwrite)
     estimate = None
     if not resume and not bench.base.quick:  # timing a quick benchmark costs as much as running it
-        estimate = estimate_bench(bench, execution)
+        cost = estimate_bench(bench, execution)
+        estimate = {k: round(cost[k], 1) for k in ("cpu_seconds", "wall_seconds")}
         print(
-            f"{sum(estimate['trials'].values())} tuning trials and "
-            f"{sum(estimate['seeds'].values())} evaluation jobs, {execution.jobs} at a time: about "
-            f"{describe(estimate['wall_seconds'])} ({estimate['cpu_seconds']:.0f} CPU s, timed "
+            f"{sum(cost['trials'].values())} tuning trials and "
+            f"{sum(cost['seeds'].values())} evaluation jobs, {execution.jobs} at a time: about "
+            f"{describe(cost['wall_seconds'])} ({cost['cpu_seconds']:.0f} CPU s, timed "
             "on this machine)",
             file=sys.stderr,
         )
@@ -380,7 +397,7 @@ def run_bench(
         chosen = run_tuning(bench.tuning(), out / "tuning", execution)
         evaluation = Evaluation(bench, out, execution, chosen, argv or [])
         evaluation.run({m: seed_count(bench, m) for m in bench.base.methods})
-        decisive = None
+        decisive, decisive_started = None, time.perf_counter()
         if bench.compare:
             while True:
                 differences = evaluation.differences(bench.compare)
@@ -389,23 +406,24 @@ def run_bench(
                     break
                 evaluation.run(dict.fromkeys(bench.compare, needed))
             decisive = {m: evaluation.summary(m) for m in bench.compare}
+        decisive_spent = time.perf_counter() - decisive_started
     summaries = {m: evaluation.summary(m, seed_count(bench, m)) for m in bench.base.methods}
-    spent = out / "spent.json"  # the wall time of every call, a resumed benchmark's too
-    calls = json.loads(spent.read_text()) if spent.is_file() else {"wall_seconds": 0, "calls": 0}
-    calls = {
+    calls = spent_so_far(out)  # every call's, a resumed benchmark's too
+    calls = {  # the decisive pair's extra seeds apart: the board's own time is the rest
         "wall_seconds": round(calls["wall_seconds"] + time.perf_counter() - started, 1),
         "calls": calls["calls"] + 1,
+        "decisive_seconds": round(calls["decisive_seconds"] + decisive_spent, 1),
+        "estimate": calls["estimate"] or estimate,  # the first call's, made before it began
+        "commits": list(dict.fromkeys([*calls["commits"], commit])),
     }
-    write_text_atomic(spent, json.dumps(calls) + "\n")
+    write_text_atomic(out / "spent.json", json.dumps(calls) + "\n")
     run = {
         "sizes": bench.sizes(),
         "settings": bench.given,
-        "commit": git_commit(),
         "machine": machine(),
         "jobs": execution.jobs,
         **calls,
         "cpu_seconds": round(measured_cpu(out, evaluation), 1),
-        "estimate": estimate and {k: estimate[k] for k in ("cpu_seconds", "wall_seconds")},
         "command": " ".join(argv or []),
     }
     board = leaderboard(bench, summaries, chosen, decisive, run)

@@ -211,13 +211,16 @@ def leaderboard_markdown(board: dict[str, Any]) -> str:
         ]
     lines += ["Chosen settings and cost:", "", markdown_table(settings), ""]
     cost = f"{run['wall_seconds'] / 60:.1f} min wall, {run['cpu_seconds']:.0f} CPU s of jobs"
+    if run["decisive_seconds"]:
+        cost += f", {run['decisive_seconds'] / 60:.1f} min of it the decisive pair's seeds"
     if run.get("estimate"):
         cost += (
             f" (estimated before it started: {run['estimate']['wall_seconds'] / 60:.1f} min, "
             f"{run['estimate']['cpu_seconds']:.0f} CPU s)"
         )
     lines += [
-        f"Ran: `{run['command']}` at commit `{run['commit']}` on {run['machine']}, "
+        f"Ran: `{run['command']}` (the last of {run['calls']} calls) at commit "
+        f"{', '.join(f'`{c}`' for c in run['commits'])} on {run['machine']}, "
         f"{run['jobs']} jobs at a time: {cost}. Trials are kept in the study prefix "
         f"`{board['study_prefix']}`.",
         "",

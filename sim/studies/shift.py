@@ -34,10 +34,13 @@ DEFAULT_METHODS = "finetune,ewc,derpp,c2inet-online"
 COUNTS = ("overlaps", "crashes")  # statistics that count events rather than measure motion
 
 
-def shift_grid(scenario: str, extra_dirs: list[Path]) -> tuple[DomainSpec, list[DomainSpec]]:
-    """The base domain and the shifted ones of one ``--scenario``."""
+def shift_grid(scenario: str, config: ExperimentConfig) -> tuple[DomainSpec, list[DomainSpec]]:
+    """The base domain and the shifted ones of one ``--scenario``, with the ``--set data.*``
+    overrides of ``config`` (the domains its sweep trains on)."""
     where = f"--scenario {scenario!r} (the base value first, the shifted ones after)"
-    specs = knob_grid(parse_scenario(scenario, extra_dirs), where, "crowd_noise_0.1..0.6")
+    data = config.settings.get("data")
+    specs = parse_scenario(scenario, list(config.scenarios_dir), data)
+    specs = knob_grid(specs, where, "crowd_noise_0.1..0.6")
     return specs[0], specs[1:]
 
 
@@ -59,7 +62,7 @@ def summarise_shift(
     table = table[table["metric"] == "ade"]
     families = []
     for scenario in scenarios:
-        base, shifted = shift_grid(scenario, list(config.scenarios_dir))
+        base, shifted = shift_grid(scenario, config)
         _, domains = make_tasks([base, *shifted], config.seed, config.quick, cache, 1)
         rows = []
         for spec, domain in zip(shifted, domains[1:], strict=True):
@@ -190,7 +193,7 @@ def run_shift(
     summary."""
     pairs = []
     for scenario in scenarios:
-        first, shifted = shift_grid(scenario, list(base.scenarios_dir))
+        first, shifted = shift_grid(scenario, base)
         pairs += [f"{first.name}+{spec.name}" for spec in shifted]
     run_sweep(SweepConfig(base, tuple(pairs)), out, execution, resume, overwrite, argv)
     return summarise_shift(scenarios, base, out, execution.cache)

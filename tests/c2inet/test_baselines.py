@@ -4,6 +4,7 @@
 checker: switching them off changes the numbers.)
 """
 
+import copy
 import dataclasses
 
 import numpy as np
@@ -310,9 +311,11 @@ def test_memory_counts_what_each_method_keeps_between_tasks():
     tasks = turning_tasks(turns=(0.1, 0.2, 0.3))
     memory = {
         name: [s["memory_floats"] for s in trained(name, tasks=tasks)[1].summaries]
-        for name in ("finetune", "coresets", "ewc", "joint")
+        for name in ("finetune", "coresets", "ewc", "joint", "mog")
     }
     assert memory["finetune"] == [0, 0, 0]
+    per_task = 5 * (2 * ModelConfig().c_dim + 1)  # MoG's frozen Gaussians: means, variances, weight
+    assert memory["mog"] == [per_task, 2 * per_task, 3 * per_task]
     scene = turners(0.1, 1, 0).positions.size  # the floats of one remembered scene
     assert memory["coresets"][1] > memory["coresets"][0] >= scene  # a buffer per task
     parameters = sum(p.numel() for p in get_method("ewc")(ModelConfig()).build_model().parameters())
@@ -339,3 +342,40 @@ def test_joint_from_scratch_restarts_every_task_from_the_initial_weights():
     method.before_task(ctx)
     restored = model.state_dict()
     assert all(torch.equal(restored[k], v) for k, v in method.initial.items())
+
+
+def test_joint_from_scratch_final_only_trains_once_on_the_union_at_the_last_task():
+    """Before the last task the model keeps its initial weights (no step taken: its rows are
+    those of the untrained model); at the last it trains on every task's data."""
+    weights = []
+    keep = [
+        lambda e, d: (
+            weights.append(copy.deepcopy(d["model"].state_dict())) if e == "task_end" else None
+        )
+    ]
+    tasks = turning_tasks(turns=(0.1, 0.2, 0.3))
+    method, once, _ = trained("joint-scratch", {"final_only": True}, tasks, keep)
+    first = weights[0]
+    assert all(torch.equal(first[k], v) for k, v in method.initial.items())
+    assert all(torch.equal(weights[1][k], v) for k, v in first.items())
+    assert not all(torch.equal(weights[2][k], v) for k, v in first.items())
+    untrained, last = once.matrices["ade"][0], once.matrices["ade"][-1]
+    assert (last < untrained).all()  # the one fit learnt every task
+
+
+def test_pecnet_is_scored_at_its_own_point_and_other_models_at_the_mean_of_draws():
+    """``ade_k1`` of PECNet is the error of its z = 0 prediction; fine-tuning's that of the mean
+    of its samples."""
+    from c2inet.trainer import evaluate, natural_points, sample_predictions
+
+    windows = turning_tasks()[0].test
+    truth = windows.positions[:, windows.obs_len :].transpose(1, 0, 2)
+    for name, natural in (("pecnet", True), ("finetune", False)):
+        _, _, model = trained(name)
+        assert getattr(model, "natural_point", False) == natural
+        if natural:
+            point = natural_points(model, windows)
+        else:
+            point = sample_predictions(model, windows, 16, 0 + 7_919).mean(0)
+        expected = np.linalg.norm(point - truth, axis=-1).mean()
+        assert evaluate(model, windows, 3, 0)["ade_k1"] == pytest.approx(expected, rel=1e-5)

@@ -421,3 +421,17 @@ def test_a_detached_c_leaves_the_backbone_to_the_prediction(detached):
     )
     assert model.to_c.mean.weight.grad.abs().sum().item() > 0
     assert (backbone == 0.0) == detached
+
+
+def test_kl_c_binds_only_below_the_free_bits_and_the_diagnostics_say_so(trained):
+    """With 8 free nats a scene's KL_C (hundredths of a nat on this toy) has no gradient: the
+    queue's prior shapes nothing, and the last epoch's binding share says 0; with a floor below
+    the KL's working range it binds."""
+    _, result = trained
+    assert all(d["kl_c_binding"] == 0.0 for d in result.diagnostics)  # the defaults: 8 nats
+    assert all(record["kl_c"] < 8 for record in result.history)  # training's, per epoch
+    config = dataclasses.replace(ModelConfig(), free_bits_c=0.001)
+    method = get_method("c2inet-online")(config, {"interval": 2})
+    trainer = ContinualTrainer(method, toy_tasks(), TrainConfig(epochs=2, k=3, k_train=2))
+    binding = [d["kl_c_binding"] for d in trainer.run().diagnostics]
+    assert all(share > 0.25 for share in binding)

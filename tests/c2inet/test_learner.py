@@ -1,5 +1,7 @@
 """The learner: batching without leakage, method hooks, checkpoints, and learning itself."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
@@ -143,3 +145,15 @@ def test_trained_methods_beat_constant_velocity_on_the_newest_task(name):
     learned = ContinualTrainer(get_method(name)(ModelConfig()), tasks, config).run()
     floor = ContinualTrainer(get_method("cv")(ModelConfig()), tasks, config).run()
     assert learned.matrices["ade"][-1, -1] < floor.matrices["ade"][-1, -1]
+
+
+def test_without_unseen_tasks_only_the_seen_cells_are_scored_and_they_are_the_same():
+    tasks = turning_tasks(turns=(0.1, 0.2, 0.3))
+    config = TrainConfig(epochs=1, k=2, k_train=1, diagnostics=False, val_every=0)
+    every = ContinualTrainer(get_method("finetune")(ModelConfig()), tasks, config).run()
+    lean = replace(config, eval_unseen=False)
+    seen = ContinualTrainer(get_method("finetune")(ModelConfig()), tasks, lean).run()
+    upper = np.triu(np.ones((3, 3), bool), 1)
+    for metric, matrix in seen.matrices.items():
+        assert np.isnan(matrix[upper]).all() and np.isfinite(matrix[~upper]).all()
+        np.testing.assert_array_equal(matrix[~upper], every.matrices[metric][~upper])

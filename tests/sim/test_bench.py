@@ -112,12 +112,20 @@ def test_a_domain_without_validation_holds_out_the_end_of_its_training_scenes(tm
 
 
 def test_the_command_ranks_every_method_and_resumes_to_the_same_leaderboard(tmp_path, capsys):
+    """Three methods ranked, joint-scratch apart; seed s draws its own data, the same for every
+    method; the decisive pair gets seeds until its interval is narrow or it has the most."""
     out = tmp_path / "bench"
     argv = [
         "--scenario",
         "crowd_noise_0.1,0.2",
         "--methods",
-        "finetune,ewc,cv",
+        "finetune,ewc,cv,joint-scratch",
+        "--compare",
+        "ewc,finetune",
+        "--width",
+        "0.0001",
+        "--max-seeds",
+        "3",
         "--seeds",
         "2",
         "--trials",
@@ -137,6 +145,22 @@ def test_the_command_ranks_every_method_and_resumes_to_the_same_leaderboard(tmp_
     assert means == sorted(means) and board["tune_scenario"] == "crowd_noise_0.1"
     assert board["prune"] and "stopped early" in (out / "leaderboard.md").read_text()
     entry = {e["method"]: e for e in board["entries"]}
+    assert "joint-scratch" not in entry  # a reference is never ranked
+    assert [r["method"] for r in board["references"]] == ["joint-scratch"]
+    assert "joint-scratch" in (out / "leaderboard.md").read_text().split("References")[1]
+    decisive = board["decisive"]  # an interval of 0.1 mm is never reached: the most seeds
+    assert decisive["pair"] == ["ewc", "finetune"] and decisive["seeds"] == 3
+    assert "undecided" in decisive["verdict"] or "better" in decisive["verdict"]
+    assert board["seeds"] == 2 and entry["ewc"]["final_ade_k1"]["interval"] is not None
+
+    def domains(method: str, seed: int) -> list[str]:
+        card = out / "evaluation" / method / f"seed_{seed}" / "run_card.json"
+        return [d["hash"] for d in json.loads(card.read_text())["domains"]]
+
+    assert domains("ewc", 0) == domains("finetune", 0) == domains("cv", 0)  # paired
+    assert domains("finetune", 0) != domains("finetune", 1)  # each seed its own data
+    assert (out / "evaluation" / "ewc" / "seed_2").is_dir()  # the pair's third seed
+    assert not (out / "evaluation" / "cv" / "seed_2").exists()
     assert entry["ewc"]["memory_floats"] > 0 and entry["finetune"]["memory_floats"] == 0
     assert entry["ewc"]["trials"] == entry["finetune"]["trials"] == 2  # the same budget
     assert "strength" in entry["ewc"]["settings"]["ewc"]
@@ -182,7 +206,7 @@ def test_a_diverged_trial_counts_as_the_worst_and_tuning_moves_on(tmp_path, monk
 
     from sim.experiment import tuning
 
-    def diverging(planned, execution, resume, argv, costs=None):
+    def diverging(planned, execution, resume, argv, costs=None, figures=True):
         job = JobResult(Job("finetune", 0), Result(["t"], {"ade_k1": np.array([[math.nan]])}, [{}]))
         return [({}, [job])] * len(planned)
 
@@ -267,3 +291,61 @@ def test_the_benchmark_estimate_times_a_trial_as_tuning_runs_it_and_adds_every_j
     assert cost["tuning_cpu_seconds"] == 3 * 10.0
     assert cost["cpu_seconds"] == 3 * 10.0 + 2 * (20.0 + 20.0)
     assert cost["wall_seconds"] == 30.0 / 2 + lanes_seconds([20.0] * 4, 2)
+
+
+def test_a_shared_storage_keeps_two_benchmarks_apart(tmp_path):
+    """Two benchmarks tuned on the same curriculum but evaluating different ones, into one
+    database: each runs its own trials under its own studies (the second once took the first's
+    and ran none)."""
+    import optuna
+
+    storage = f"sqlite:///{tmp_path / 'shared.db'}"
+    execution = Execution(cache=tmp_path / "cache")
+    for name, scenario in (("a", "crowd_noise_0.1,0.2"), ("b", "crowd_noise_0.1,0.3")):
+        base = ExperimentConfig(scenario, methods=("finetune",), quick=True, record=False)
+        bench = BenchConfig(base, name=name, trials=1, storage=storage)
+        run_tuning(bench.tuning(), tmp_path / name, execution)
+        assert (tmp_path / name / "trials" / "finetune" / "trial_000" / "metrics.json").is_file()
+    names = sorted(optuna.get_all_study_names(storage))
+    assert len(names) == 2 and [n.split("-")[0] for n in names] == ["a", "b"]
+    assert all(n.endswith(":finetune") for n in names)
+    assert all(len(optuna.load_study(study_name=n, storage=storage).trials) == 1 for n in names)
+
+
+def test_every_preset_tunes_on_three_tasks_or_more_outside_what_it_evaluates():
+    """The tuning curriculum shares no value with the evaluated one (ETH-UCY, with no other
+    real recording, tunes on held-out training scenes of its own: it has no validation split,
+    so trials never read what it evaluates)."""
+    from sim.scenario import parse_scenario
+    from sim.studies.benchmark import PRESETS
+
+    for name, preset in PRESETS.items():
+        evaluated, tuning = parse_scenario(preset.scenario), parse_scenario(preset.tune_scenario)
+        assert len(tuning) >= 3, name
+        if name == "eth-ucy":
+            assert all(not spec.knobs["val"] for spec in tuning)
+            continue
+        shared = {s.value for s in evaluated} & {s.value for s in tuning}
+        assert not shared, f"{name} tunes on {sorted(shared)}, which it evaluates"
+    with pytest.raises(InputError, match="three or more"):
+        BenchConfig(ExperimentConfig("crowd_noise_0.1..0.3"), tune_scenario="crowd_noise_0.15")
+    with pytest.raises(InputError, match="against finetune"):
+        BenchConfig(ExperimentConfig("crowd_noise_0.1..0.3", methods=("ewc", "cv")))
+
+
+def test_holm_over_the_board_unmarks_a_borderline_method():
+    """A p of 0.03 is significant alone; on a board of three tests it is 0.09 after Holm."""
+    from sim.studies.leaderboard import adjust
+
+    def cell(p):
+        return {"p_value": p, "significant": p is not None and p < 0.05}
+
+    comparison = {
+        name: {"final_ade_k1": cell(p), "final_ade": cell(p)}
+        for name, p in (("finetune", 1.0), ("a", 0.03), ("b", 0.5), ("c", 0.6))
+    }
+    assert comparison["a"]["final_ade_k1"]["significant"]
+    adjust(comparison)
+    a = comparison["a"]["final_ade_k1"]
+    assert a["p_raw"] == 0.03 and a["p_value"] == pytest.approx(0.09) and not a["significant"]
+    assert comparison["finetune"]["final_ade_k1"]["p_value"] == 1.0  # not in the family

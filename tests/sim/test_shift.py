@@ -35,7 +35,18 @@ def test_rank_correlation_needs_four_shifts():
 
 
 def test_shift_needs_a_base_and_shifted_values():
+    config = ExperimentConfig("crowd_noise_0.1")
     with pytest.raises(InputError, match="base value first"):
-        shift.shift_grid("crowd_noise_0.1", [])
+        shift.shift_grid("crowd_noise_0.1", config)
     with pytest.raises(InputError, match="base value first"):
-        shift.shift_grid("eth_ucy_eth,hotel", [])
+        shift.shift_grid("eth_ucy_eth,hotel", config)
+
+
+def test_the_shift_grid_holds_the_domains_the_sweep_trains():
+    """``--set data.*`` reaches the domains whose statistics the study measures (it once parsed
+    the scenario again without them: 10 agents measured where 6 were trained)."""
+    config = ExperimentConfig("crowd_noise_0.1", settings={"data": {"agents": 6}})
+    base, shifted = shift.shift_grid("crowd_noise_0.1..0.3", config)
+    assert [s.knobs["agents"] for s in (base, *shifted)] == [6, 6, 6]
+    default = shift.shift_grid("crowd_noise_0.1..0.3", ExperimentConfig("crowd_noise_0.1"))[0]
+    assert default.knobs["agents"] != 6
