@@ -9,6 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 POINT_DRAWS = 16  # the point prediction (K = 1) is the mean of at least this many sampled futures
+COLLISION_DISTANCE = 0.1  # metres: two paths closer than this collide (TrajNet++'s threshold)
+COLLISION_SUBSTEPS = 4  # points checked between two frames, on the straight line (TrajNet++'s)
 
 
 def displacement_errors(pred: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -61,7 +63,36 @@ def evaluate_predictions(
     if point is not None:
         point_ade, point_fde = displacement_errors(point[None], truth)
         scores |= {"ade_k1": float(point_ade.mean()), "fde_k1": float(point_fde.mean())}
+        scores |= collisions(point, truth, scene_start)
     return scores
+
+
+def _densified(paths: np.ndarray) -> np.ndarray:
+    """(T, N, 2) paths with :data:`COLLISION_SUBSTEPS` points on the line between frames."""
+    steps = np.linspace(0, 1, COLLISION_SUBSTEPS + 1)[:-1, None, None, None]
+    between = paths[:-1][None] + steps * (paths[1:] - paths[:-1])[None]  # (S, T-1, N, 2)
+    return np.concatenate([between.transpose(1, 0, 2, 3).reshape(-1, *paths.shape[1:]), paths[-1:]])
+
+
+def collisions(point: np.ndarray, truth: np.ndarray, scene_start: np.ndarray) -> dict[str, float]:
+    """TrajNet++'s collision rates of the point prediction (T, N, 2), over the agents that
+    share their scene with another: ``col_pred`` (Col-I), the share whose predicted path comes
+    within :data:`COLLISION_DISTANCE` of another agent's predicted path at the same moment;
+    ``col_truth`` (Col-II), of another agent's true path. 0 where no scene has two agents."""
+    pred, true = _densified(point), _densified(truth)
+    hits = {"col_pred": [], "col_truth": []}
+    for first, end in zip(scene_start[:-1], scene_start[1:], strict=True):
+        if end - first < 2:
+            continue
+        mine = pred[:, first:end]
+        others = np.eye(end - first, dtype=bool)[None]  # an agent never collides with itself
+        for name, theirs in (("col_pred", mine), ("col_truth", true[:, first:end])):
+            gaps = np.linalg.norm(mine[:, :, None] - theirs[:, None], axis=-1)  # (T', n, n)
+            close = (gaps < COLLISION_DISTANCE) & ~others
+            hits[name].append(close.any(axis=(0, 2)))
+    return {
+        name: float(np.concatenate(found).mean()) if found else 0.0 for name, found in hits.items()
+    }
 
 
 def average_seen(matrix: np.ndarray) -> np.ndarray:

@@ -7,6 +7,7 @@ from typing import Any
 import numpy as np
 
 from c2inet.metrics import (
+    COLLISION_DISTANCE,
     POINT_DRAWS,
     average_seen,
     backward_transfer,
@@ -60,7 +61,7 @@ def summarise(
     # other ways the model predicts (C2INet's C from the posterior): suffixes of its metrics
     out["variants"] = [k.removeprefix("ade_k1_") for k in runs[0] if k.startswith("ade_k1_")]
     suffixes = ["", *(f"_{v}" for v in out["variants"])]
-    measured = ("ade", "fde", "ade_k1", "fde_k1", "ade_draw", "fde_draw")
+    measured = ("ade", "fde", "ade_k1", "fde_k1", "ade_draw", "fde_draw", "col_pred", "col_truth")
     for metric in (f"{m}{s}" for s in suffixes for m in measured if f"{m}{s}" in runs[0]):
         seen = np.array([average_seen(r[metric]) for r in runs])
         out[f"avg_seen_{metric}"] = _rounded(seen.mean(0))
@@ -305,6 +306,22 @@ def markdown_report(
         "",
         markdown_table(table_rows(methods, labels, "ade_draw")),
     ]
+    collided = [(n, m) for n, m in methods.items() if "avg_seen_col_pred" in m]
+    if collided:
+        rows = [["method", "Col-I (predictions)", "Col-II (truths)"]]
+        rows += [
+            [n, f"{m['avg_seen_col_pred'][-1]:.1%}", f"{m['avg_seen_col_truth'][-1]:.1%}"]
+            for n, m in collided
+        ]
+        parts += [
+            "",
+            "Collisions of the point prediction after the last task, averaged over the tasks "
+            "(TrajNet++'s: the share of agents with a neighbour whose predicted path comes "
+            f"within {COLLISION_DISTANCE} m of a neighbour's predicted path, Col-I, or true "
+            "path, Col-II; constant velocity, which ignores its neighbours, for comparison):",
+            "",
+            markdown_table(rows),
+        ]
     seeds = min(m["seeds"] for m in methods.values())
     comparison = compare(methods)
     if comparison and seeds > 1:

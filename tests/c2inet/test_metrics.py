@@ -103,3 +103,24 @@ def test_diagnostics_average_over_seeds_and_keep_the_first_queue():
     (merged,) = summarise_diagnostics([seed0, seed1])
     assert merged["mi_xc"] == 1.5 and merged["kl_c"] == [1.5, 4.0]
     assert merged["probe_c"] is None and merged["queue"] == {"size": 3}
+
+
+def test_collisions_count_agents_whose_paths_meet_predicted_or_true():
+    """Two agents walking head-on through each other between two frames collide (the check
+    reads points between frames); agents a metre apart do not; a lone agent is not counted."""
+    from c2inet.metrics import collisions
+
+    t = np.arange(12, dtype=float)[:, None]
+    meeting = np.stack([np.hstack([t - 5.5, 0 * t]), np.hstack([5.5 - t, 0 * t])], axis=1)
+    apart = np.stack([np.hstack([t, 0 * t]), np.hstack([t, 0 * t + 1.0])], axis=1)
+    lone = np.hstack([t, 0 * t + 9.0])[:, None]
+    point = np.concatenate([meeting, apart, lone], axis=1)  # (12, 5, 2): scenes of 2, 2 and 1
+    starts = np.array([0, 2, 4, 5])
+    rates = collisions(point, point, starts)
+    assert rates == {"col_pred": 0.5, "col_truth": 0.5}  # 2 of the 4 agents with a neighbour
+    truth = point.copy()
+    truth[:, 1] += [0.0, 3.0]  # the second truly walked 3 m aside; the first did not
+    assert collisions(point, truth, starts) == {"col_pred": 0.5, "col_truth": 0.25}
+    truth[:, 0] -= [0.0, 3.0]  # and the first 3 m the other way: no prediction meets a truth
+    assert collisions(point, truth, starts) == {"col_pred": 0.5, "col_truth": 0.0}
+    assert collisions(lone, lone, np.array([0, 1])) == {"col_pred": 0.0, "col_truth": 0.0}
