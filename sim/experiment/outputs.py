@@ -54,7 +54,8 @@ TRUTH_PART = "truth.partial.rrd"  # the run's own recording until it is merged w
 MARKER = ".c2i-run"  # written first into every run folder: the proof that the folder is ours
 LOCK = ".c2i-run.lock"  # held (an OS file lock) by the process that runs or resumes the folder
 _LOCKS: dict[Path, int] = {}  # the folders this process holds, and the lock files' descriptors
-REPORTS = ("study", "shift", "drift", "active", "fidelity")  # the studies' NAME.json/.md/.png
+# the studies' NAME.json/.md/.png, and the benchmark's board
+REPORTS = ("study", "shift", "drift", "active", "fidelity", "leaderboard")
 RUN_FILES = {
     MARKER,
     LOCK,
@@ -67,6 +68,9 @@ RUN_FILES = {
     "recording.partial.rrd",
     TRUTH_PART,
     "summary.json",
+    "spent.json",  # a benchmark's time
+    "tuning.db",  # a tuning's Optuna studies (in its own marked folder)
+    "tuning.json",
     *(f"{name}.{ext}" for name in REPORTS for ext in ("json", "md", "png")),
 }
 RUN_FOLDERS = {"jobs", "matrices", "figures", "logs", "tensorboard", "cache", "cells"}

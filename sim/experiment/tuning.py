@@ -45,6 +45,7 @@ from c2inet.options import Choice, Tunable
 from c2inet.trainer import TRAIN_SPACE, Result, Task
 from sim.experiment.config import Execution, ExperimentConfig
 from sim.experiment.curriculum import Curriculum, JobInputs
+from sim.experiment.outputs import MARKER, mark_run
 from sim.experiment.sweep import Planned, layered, plan, run_together
 
 HOLDOUT = 0.2  # share of a domain's training scenes held out where it has no validation split
@@ -70,6 +71,38 @@ class TuneConfig:
             raise InputError(f"trials must be at least 1, got {self.trials}")
         if self.warmup_tasks < 0:
             raise InputError(f"warmup tasks must be at least 0, got {self.warmup_tasks}")
+
+
+def check_storage(url: str | None) -> None:
+    """Refuse, in one line, a ``--storage`` URL Optuna cannot open, or an SQLite file that holds
+    another application's tables (it would gain Optuna's); nothing is claimed before."""
+    if url is None:
+        return
+    import sqlite3
+
+    import optuna
+    from sqlalchemy.engine import make_url
+
+    where = f"--storage {url[:80]!r}"
+    try:
+        parsed = make_url(url)
+    except Exception as error:  # SQLAlchemy's parser: whatever it raises
+        raise InputError(f"{where}: not a database URL ({type(error).__name__})") from None
+    if parsed.get_backend_name() == "sqlite" and parsed.database:
+        path = Path(parsed.database)
+        if path.exists():
+            try:
+                with sqlite3.connect(f"file:{path}?mode=ro", uri=True) as db:
+                    rows = db.execute("SELECT name FROM sqlite_master WHERE type='table'")
+                    tables = {name for (name,) in rows}
+            except sqlite3.Error as error:
+                raise InputError(f"{where}: {path} is no SQLite database ({error})") from None
+            if tables and "studies" not in tables:
+                raise InputError(f"{where}: {path} holds another application's tables")
+    try:
+        optuna.storages.RDBStorage(url)
+    except Exception as error:  # the driver's and Optuna's: whatever they raise
+        raise InputError(f"{where}: cannot be opened ({type(error).__name__})") from None
 
 
 def search_space(method: str) -> dict[str, Tunable | Choice]:
@@ -190,6 +223,8 @@ def run_tuning(
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     execution = execution or Execution()
     out.mkdir(parents=True, exist_ok=True)
+    if not (out / MARKER).is_file():  # ours, for --overwrite: its studies and its trial folders
+        mark_run(out)
     storage = tune.storage or f"sqlite:///{(out / 'tuning.db').resolve()}"
     base = replace(tune.base, seeds=1, record=False)
     tuned = [m for m in base.methods if search_space(m)]
@@ -201,6 +236,8 @@ def run_tuning(
             direction="minimize",
             load_if_exists=True,
         )
+        if study.direction != optuna.study.StudyDirection.MINIMIZE:
+            raise InputError(f"tuning: the stored study {study.study_name!r} maximises; not ours")
         for trial in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
             study.tell(trial.number, state=TrialState.FAIL)  # killed: asked again below
         studies[method] = study

@@ -40,11 +40,20 @@ from sim.experiment.backends import kept_workers
 from sim.experiment.config import Execution, ExperimentConfig
 from sim.experiment.estimate import describe, job_seconds, lanes_seconds
 from sim.experiment.jobs import JobResult, prepare
-from sim.experiment.outputs import COLUMNS, claim, git_commit, tidy_rows, write_results
+from sim.experiment.outputs import (
+    COLUMNS,
+    MARKER,
+    claim,
+    git_commit,
+    mark_run,
+    tidy_rows,
+    write_results,
+)
 from sim.experiment.sweep import layered, plan, run_together
 from sim.experiment.tuning import (
     TRIAL_TRAIN,
     TuneConfig,
+    check_storage,
     run_tuning,
     search_space,
     trial_results,
@@ -230,6 +239,7 @@ class BenchConfig:
             "replay_budget": self.replay_budget,
             "prune": self.prune,
             "reference_seeds": self.reference_seeds,
+            "storage": self.storage,
         }
 
 
@@ -381,6 +391,7 @@ def run_bench(
     execution = execution or Execution()
     started, cpu_started = time.perf_counter(), time.process_time()
     commit = git_commit()  # the code that runs, not what the checkout holds when it ends
+    check_storage(bench.storage)  # before the folder is claimed
     claim(out, bench, execution, resume, overwrite)
     estimate = None
     if not resume and not bench.base.quick:  # timing a quick benchmark costs as much as running it
@@ -395,6 +406,9 @@ def run_bench(
         )
     with kept_workers():  # the tuning rounds and the evaluation start the workers once
         chosen = run_tuning(bench.tuning(), out / "tuning", execution)
+        (out / "evaluation").mkdir(exist_ok=True)
+        if not (out / "evaluation" / MARKER).is_file():  # a folder of ours, for --overwrite
+            mark_run(out / "evaluation")
         evaluation = Evaluation(bench, out, execution, chosen, argv or [])
         evaluation.run({m: seed_count(bench, m) for m in bench.base.methods})
         decisive, decisive_started = None, time.perf_counter()

@@ -172,6 +172,9 @@ def test_the_command_ranks_every_method_and_resumes_to_the_same_leaderboard(tmp_
     again = json.loads((out / "leaderboard.json").read_text())
     assert again.pop("run")["calls"] == 2 and board.pop("run")["calls"] == 1
     assert again == board
+    from sim.experiment.outputs import foreign_entry
+
+    assert foreign_entry(out) is None  # every file is the benchmark's: --overwrite may remove it
     capsys.readouterr()
     assert main(["cubic"]) == 2
     assert "preset 'cubic': unknown" in capsys.readouterr().err
@@ -349,3 +352,28 @@ def test_holm_over_the_board_unmarks_a_borderline_method():
     a = comparison["a"]["final_ade_k1"]
     assert a["p_raw"] == 0.03 and a["p_value"] == pytest.approx(0.09) and not a["significant"]
     assert comparison["finetune"]["final_ade_k1"]["p_value"] == 1.0  # not in the family
+
+
+def test_a_bad_storage_is_one_line_before_anything_is_written(tmp_path, capsys):
+    """Refused before the folder is claimed: a URL that is none, a file that is no database, a
+    database of another application (left as it was), a server that does not answer."""
+    import sqlite3
+
+    foreign = tmp_path / "app.db"
+    with sqlite3.connect(foreign) as db:
+        db.execute("CREATE TABLE accounts (id INTEGER)")
+    before = foreign.read_bytes()
+    (tmp_path / "notes.txt").write_text("not a database")
+    cases = {
+        "notaurl": "not a database URL",
+        f"sqlite:///{tmp_path / 'notes.txt'}": "no SQLite database",
+        f"sqlite:///{foreign}": "another application's tables",
+        f"sqlite:///{tmp_path / 'missing' / 'x.db'}": "cannot be opened",
+    }
+    for url, message in cases.items():
+        out = tmp_path / "bench"
+        argv = ["--scenario", "crowd_noise_0.1..0.3", "--methods", "finetune", "--quick"]
+        assert main([*argv, "--storage", url, "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert message in err and len(err.strip().splitlines()) == 1 and not out.exists()
+    assert foreign.read_bytes() == before
