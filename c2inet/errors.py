@@ -28,8 +28,13 @@ class InputError(ValueError):
 
 
 def did_you_mean(name: str, known: Iterable[str]) -> str:
-    """``"; did you mean 'x'?"`` for the closest known name, or nothing when none is close."""
-    close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)
+    """``"; did you mean 'x'?"`` for the closest known name (the names that begin with
+    ``name`` first: ``c2inet`` means a C2INet, not ``pecnet``), or nothing when none is close."""
+    known = list(known)
+    starting = sorted(k for k in known if name and k.startswith(name))
+    if starting:
+        return f"; did you mean {' or '.join(repr(k) for k in starting[:3])}?"
+    close = difflib.get_close_matches(name, known, n=1, cutoff=0.6)
     return f"; did you mean {close[0]!r}?" if close else ""
 
 
