@@ -244,7 +244,7 @@ def test_list_shows_families_methods_and_knobs(capsys):
     [
         (["--scenario", "crowd_nose_0.1"], "did you mean 'crowd_noise'?"),
         (["--scenario", "crowd_noise_0.1", "--methods", "finetun"], "did you mean 'finetune'?"),
-        (["--scenario", "crowd_noise_0.1", "--methods", "c2inet"], "'c2inet-offline' or 'c2inet-on"),
+        (["--scenario", "crowd_noise_0.1", "--methods", "c2inet"], "'c2inet-offline' or"),
         (["--scenario", "crowd_noise_0.1-0.6"], "a range is written 0.1..0.6"),
         (["--scenario", "crowd_noise"], "needs values"),
         (["--scenario", "crowd_noise_0.1", "--set", "data.agentz=3"], "did you mean 'agents'?"),
