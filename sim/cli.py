@@ -133,6 +133,25 @@ SAME_NAME = (
 # a configuration file's key -> the option (argparse dest) that takes it
 CONFIG_KEYS = {**{name: name for name in SAME_NAME}, "record": "no_record", "loggers": "logger"}
 SWITCHES = ("quick", "record")  # true or false, not text
+NUMBERS = ("seed", "seeds", "epochs", "k", "jobs", "threads", "workers", "memory_budget")
+LISTS = ("methods", "loggers", "scenarios_dir")  # text, or a list of texts
+
+
+def _typed(path: Path, key: str, value: Any) -> None:
+    """Refuse a file's value of the wrong type, as strictly as the flag would: a number as
+    text (``epochs = "3"``), a list, a table or a date where one value is meant."""
+    if key in SWITCHES:
+        ok, expected = isinstance(value, bool), "true or false"
+    elif key in NUMBERS:
+        ok = isinstance(value, int | float) and not isinstance(value, bool)
+        expected = "a number"
+    elif key in LISTS:
+        items = value if isinstance(value, list) else [value]
+        ok, expected = all(isinstance(v, str) for v in items), "text or a list of texts"
+    else:
+        ok, expected = isinstance(value, str), "text"
+    if not ok:
+        raise InputError(f"--config {path}: {key} = {value!r}: expected {expected}")
 
 
 def read_config(path: Path) -> dict[str, Any]:
@@ -166,8 +185,7 @@ def config_defaults(path: Path, p: argparse.ArgumentParser) -> tuple[dict, dict]
         dest = CONFIG_KEYS[key]
         if dest not in dests or value is None:
             continue
-        if key in SWITCHES and not isinstance(value, bool):
-            raise InputError(f"--config {path}: {key} = {value!r}: expected true or false")
+        _typed(path, key, value)
         if key == "record":
             value = not value
         elif key in ("methods", "loggers") and isinstance(value, list):

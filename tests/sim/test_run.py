@@ -440,6 +440,15 @@ def test_a_config_file_gives_the_options_and_flags_override_it(tmp_path, capsys)
         "quick = 'false': expected true or false"
         in refused(capsys, "--config", str(tmp_path / "bad.toml"))[-1]
     )
+    for line, expected in (
+        ('epochs = "3"', "epochs = '3': expected a number"),  # text once taken as the number
+        ("epochs = [1]", "epochs = [1]: expected a number"),
+        ("device = true", "device = True: expected text"),
+        ("methods = {a = 1}", "methods = {'a': 1}: expected text or a list of texts"),
+        ("scenario = 2024-01-01", "expected text"),
+    ):
+        (tmp_path / "bad.toml").write_text(line + "\n")
+        assert expected in refused(capsys, "--config", str(tmp_path / "bad.toml"))[-1], line
     (tmp_path / "bad.toml").write_text('scenario = "crowd_noise_0.1"\nepochs = -3\n')
     assert (
         "argument --epochs: -3 is not between 0"
