@@ -371,7 +371,7 @@ def leaderboard_figure(board: dict[str, Any], path: Path) -> None:
     fig.suptitle(
         f"{board['scenario']}: {board['trials']} trials a method, {board['seeds']} seeds "
         f"(bars: 95 % intervals of the mean; * p < {board['alpha']} in a paired test against "
-        f"{board['reference']})",
+        f"{board['reference']}{', Holm-adjusted' if board.get('correction') else ''})",
         fontsize=9,
     )
     fig.tight_layout()
