@@ -250,14 +250,17 @@ def foreign_entry(folder: Path, runs_only: bool = False) -> Path | None:
     """The first entry of ``folder`` that a run of ours does not write (None: all ours).
 
     Ours: the marker and the run's own files and folders, temporary files of an interrupted
-    write, and nested run folders (a sweep's), alone or grouped in plain folders that hold
-    nothing else (``runs_only``)."""
+    write, and nested run folders (a sweep's, a tuning's trials), alone or grouped in plain
+    folders, at any depth, that hold nothing else (``runs_only``)."""
     for entry in sorted(folder.iterdir()):
         run = entry.is_dir() and not entry.is_symlink() and (entry / MARKER).is_file()
-        if entry.is_symlink() or (runs_only and not run):
+        if entry.is_symlink():
             return entry
         if run:
             inner = foreign_entry(entry)
+        elif runs_only:
+            grouped = entry.is_dir() and any(entry.iterdir())
+            inner = foreign_entry(entry, runs_only=True) if grouped else entry
         elif _run_output(entry):
             continue
         elif entry.is_dir() and any(entry.iterdir()):  # a sweep's scenario folder
