@@ -46,7 +46,7 @@ PAST_INPUTS = ("z", "zc")
 # queue-free control, MoG, GCRL): the likelihood's sharpness and the two KL weights
 LATENT_SPACE = {
     "model.likelihood_std": Tunable(0.03, 0.3, log=True),
-    "model.beta_c": Tunable(0.1, 3.0, log=True),
+    "model.beta_c": Tunable(0.01, 3.0, log=True),  # GCRL chose 0.10, the old floor
     "model.beta_z": Tunable(0.1, 3.0, log=True),
 }
 # C2INet's and its control's: the latent models' weights and the knobs its mechanism depends

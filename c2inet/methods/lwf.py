@@ -31,7 +31,7 @@ class LwF(Method):
     """Distillation from the previous task's model on the current scenes."""
 
     name = "lwf"
-    search_space = {"strength": Tunable(0.01, 100.0, log=True)}
+    search_space = {"strength": Tunable(1e-4, 100.0, log=True)}  # 0.02 chosen, floor was 0.01
     Options = LwFOptions
     inert = {"strength": 0.0}
 
