@@ -368,19 +368,35 @@ def measured_cpu(out: Path, evaluation: Evaluation) -> float:
     return tuning + jobs
 
 
-def spent_so_far(out: Path) -> dict[str, Any]:
-    """What the earlier calls of a benchmark in ``out`` spent (``spent.json``): wall seconds,
-    calls, the decisive pair's seconds, the first call's estimate and the commits that ran
-    (the board of an earlier version, whose file lacked the last two, gives them)."""
-    spent = {"wall_seconds": 0, "calls": 0, "decisive_seconds": 0}
+def record_call(out: Path, wall: float, decisive: float, estimate, commit) -> dict[str, Any]:
+    """Add this call to ``spent.json`` and return the totals: wall seconds, calls, the decisive
+    pair's seconds (apart: the board's own time is the rest), the first call's estimate (made
+    before it began) and the commits that ran."""
+    spent = {"wall_seconds": 0, "calls": 0, "decisive_seconds": 0, "estimate": None, "commits": []}
     if (out / "spent.json").is_file():
         spent |= json.loads((out / "spent.json").read_text())
-    if "commits" not in spent:
-        board = out / "leaderboard.json"
-        run = json.loads(board.read_text())["run"] if board.is_file() else {}
-        spent["estimate"] = run.get("estimate")
-        spent["commits"] = [run["commit"]] if run.get("commit") else []
+    spent = {
+        "wall_seconds": round(spent["wall_seconds"] + wall, 1),
+        "calls": spent["calls"] + 1,
+        "decisive_seconds": round(spent["decisive_seconds"] + decisive, 1),
+        "estimate": spent["estimate"] or estimate,
+        "commits": list(dict.fromkeys([*spent["commits"], commit])),
+    }
+    write_text_atomic(out / "spent.json", json.dumps(spent) + "\n")
     return spent
+
+
+def decide_pair(bench: BenchConfig, evaluation: Evaluation) -> dict[str, Any] | None:
+    """Give the decisive pair seeds until its interval is narrow or it has the most; returns
+    both methods' summaries over all their seeds (None without a pair)."""
+    if not bench.compare:
+        return None
+    while True:
+        differences = evaluation.differences(bench.compare)
+        needed = seeds_to_narrow(differences, bench.width, bench.max_seeds)
+        if needed <= len(differences):
+            return {m: evaluation.summary(m) for m in bench.compare}
+        evaluation.run(dict.fromkeys(bench.compare, needed))
 
 
 def run_bench(
@@ -415,26 +431,12 @@ def run_bench(
             mark_run(out / "evaluation")
         evaluation = Evaluation(bench, out, execution, chosen, argv or [])
         evaluation.run({m: seed_count(bench, m) for m in bench.base.methods})
-        decisive, decisive_started = None, time.perf_counter()
-        if bench.compare:
-            while True:
-                differences = evaluation.differences(bench.compare)
-                needed = seeds_to_narrow(differences, bench.width, bench.max_seeds)
-                if needed <= len(differences):
-                    break
-                evaluation.run(dict.fromkeys(bench.compare, needed))
-            decisive = {m: evaluation.summary(m) for m in bench.compare}
+        decisive_started = time.perf_counter()
+        decisive = decide_pair(bench, evaluation)
         decisive_spent = time.perf_counter() - decisive_started
     summaries = {m: evaluation.summary(m, seed_count(bench, m)) for m in bench.base.methods}
-    calls = spent_so_far(out)  # every call's, a resumed benchmark's too
-    calls = {  # the decisive pair's extra seeds apart: the board's own time is the rest
-        "wall_seconds": round(calls["wall_seconds"] + time.perf_counter() - started, 1),
-        "calls": calls["calls"] + 1,
-        "decisive_seconds": round(calls["decisive_seconds"] + decisive_spent, 1),
-        "estimate": calls["estimate"] or estimate,  # the first call's, made before it began
-        "commits": list(dict.fromkeys([*calls["commits"], commit])),
-    }
-    write_text_atomic(out / "spent.json", json.dumps(calls) + "\n")
+    wall = time.perf_counter() - started
+    calls = record_call(out, wall, decisive_spent, estimate, commit)
     run = {
         "sizes": bench.sizes(),
         "settings": bench.given,
@@ -443,6 +445,7 @@ def run_bench(
         **calls,
         "cpu_seconds": round(measured_cpu(out, evaluation), 1),
         "command": " ".join(argv or []),
+        "cpu_seconds_driver": round(time.process_time() - cpu_started, 1),
     }
     board = leaderboard(bench, summaries, chosen, decisive, run)
     rows = {c: [] for c in COLUMNS}
@@ -451,7 +454,6 @@ def run_bench(
             for column, values in tidy_rows("tuned", config, [job]).items():
                 rows[column] += values
     write_results(out / "results.parquet", rows)
-    board["run"]["cpu_seconds_driver"] = round(time.process_time() - cpu_started, 1)
     write_text_atomic(out / "leaderboard.json", json.dumps(board, indent=1) + "\n")
     write_text_atomic(out / "leaderboard.md", leaderboard_markdown(board))
     leaderboard_figure(board, out / "leaderboard.png")
