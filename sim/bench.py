@@ -114,6 +114,7 @@ def main(argv: list[str] | None = None) -> int:
         preset = PRESETS[args.preset]
         args.scenario = preset.scenario
         tune_scenario = tune_scenario or preset.tune_scenario
+    data = PRESETS[args.preset].data if args.preset else {}
     name = args.preset or "custom"
     out = args.out or Path("bench") / name
     base = ExperimentConfig(args.scenario, **experiment_options(args))
@@ -129,6 +130,7 @@ def main(argv: list[str] | None = None) -> int:
         tuple(args.compare.split(",")) if args.compare else (),
         args.width,
         args.max_seeds,
+        data,
     )
     try:
         board = run_bench(

@@ -104,6 +104,7 @@ def leaderboard(
         "epochs": base.epochs,
         "batch_scenes": train.batch_scenes,
         "k": base.k,
+        "data": base.settings.get("data", {}),
         "trials": bench.trials,
         "prune": bench.prune,
         "replay_budget": bench.replay_budget,
@@ -118,6 +119,13 @@ def leaderboard(
         "decisive": decisive and decide(bench.compare, decisive, bench.width),
         "run": run,
     }
+
+
+def _data_text(data: dict[str, Any]) -> str:
+    """The data sizes a board ran at, where they are not the families' own."""
+    if not data:
+        return ""
+    return "; data: " + ", ".join(f"`{key}={value}`" for key, value in sorted(data.items()))
 
 
 def _settings_text(settings: dict[str, dict[str, Any]]) -> str:
@@ -160,7 +168,8 @@ def leaderboard_markdown(board: dict[str, Any]) -> str:
         f"{sizes}: {board['epochs']} epochs a task at batch {board['batch_scenes']}, K = "
         f"{board['k']}, {board['trials']} Optuna trials a method (its defaults first{pruned}) "
         f"on `{board['tune_scenario']}` scored on validation data only, then {board['seeds']} "
-        f"seeds a method, seed s drawing its own data for every method. `--set`: {given}. "
+        f"seeds a method, seed s drawing its own data for every method"
+        f"{_data_text(board.get('data', {}))}. `--set`: {given}. "
         f"Ranked by final average ADE of the point prediction (K = 1). Intervals are 95 %; p is "
         f"a paired t-test against {board['reference']} over the same seeds, Holm-adjusted over "
         f"the board, `*` below {board['alpha']}; a difference whose interval holds 0 is within "

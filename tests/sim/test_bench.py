@@ -14,7 +14,7 @@ from sim.experiment import ExperimentConfig
 from sim.experiment.config import Execution, Job
 from sim.experiment.jobs import JobResult, prepare
 from sim.experiment.tuning import TuneConfig, run_tuning, trial_seconds, validation_inputs
-from sim.studies.benchmark import BenchConfig, estimate_bench
+from sim.studies.benchmark import BATCH, PRESETS, BenchConfig, estimate_bench
 
 BAD_LR = 1e-5  # a default that barely trains in two epochs
 
@@ -185,7 +185,7 @@ def test_a_replay_budget_gives_every_replay_method_the_same_scenes():
         "crowd_noise_0.1..0.4", methods=("coresets", "agem", "derpp", "finetune"), quick=True
     )
     settings = BenchConfig(base, replay_budget=60).base.settings
-    assert settings.pop("train") == {"batch_scenes": 64}  # the protocol's batch
+    assert settings.pop("train") == {"batch_scenes": BATCH}  # the protocol's batch
     assert settings == {
         "coresets": {"per_task": 20},  # 3 earlier tasks x 20 replayed at the last task
         "agem": {"per_task": 20},
@@ -193,6 +193,20 @@ def test_a_replay_budget_gives_every_replay_method_the_same_scenes():
     }
     with pytest.raises(InputError, match="replay budget"):
         BenchConfig(base, replay_budget=0)
+
+
+def test_a_presets_data_sizes_reach_both_curricula_under_the_users_own():
+    density = PRESETS["density"]
+    assert density.data == {"splits.train": 60}  # many agents a scene: fewer scenes fit the hour
+    base = ExperimentConfig(density.scenario, methods=("finetune",))
+    bench = BenchConfig(base, "density", density.tune_scenario, data=density.data)
+    for config in (bench.base, bench.tuning().base):
+        assert {spec.family.splits.train for spec in config.specs} == {60}
+    given = replace(base, settings={"data": {"splits.train": 90}})
+    bench = BenchConfig(given, "density", density.tune_scenario, data=density.data)
+    assert {spec.family.splits.train for spec in bench.base.specs} == {90}
+    assert bench.given == {"data": {"splits.train": 90}}
+    assert BenchConfig(base, data=density.data).key() != BenchConfig(base).key()
 
 
 def test_bad_tuning_options_are_refused():
@@ -288,7 +302,7 @@ def test_the_benchmark_estimate_times_a_trial_as_tuning_runs_it_and_adds_every_j
     for config in (trial_config, job_config):  # both lean, as they run
         train = config.train_config()
         assert not train.diagnostics and not train.test_rules and train.val_every == 0
-        assert not train.eval_unseen and train.batch_scenes == 64
+        assert not train.eval_unseen and train.batch_scenes == BATCH
     assert all(task.test is task.val for task in trial_tasks) and len(job_tasks) == 2
     assert cost["trials"] == {"finetune": 3, "cv": 0}
     assert cost["tuning_cpu_seconds"] == 3 * 10.0
