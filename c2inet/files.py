@@ -16,26 +16,36 @@ from pathlib import Path
 
 from c2inet.errors import CannotWrite, InputError
 
+TEMPORARY_SUFFIX = ".c2i-tmp"  # write_atomic's temporaries: .NAME.XXXXXXXX.c2i-tmp
+
 
 def write_atomic(path: Path, write: Callable[[Path], None]) -> None:
-    """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it into place."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    os.close(fd)
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the file the usual permissions
+    """Call ``write(tmp)`` on a temporary file beside ``path``, then rename it into place.
+
+    The temporary's name ends in :data:`TEMPORARY_SUFFIX`, so a resume removes the leftovers
+    of an interrupted write and nothing a user named alike."""
+    tmp = None
     try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(
+            prefix=f".{path.name}.", suffix=TEMPORARY_SUFFIX, dir=path.parent
+        )
+        os.close(fd)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the file the usual permissions
         write(Path(tmp))
         os.replace(tmp, path)
     except (OSError, RuntimeError) as error:  # torch reports a full disk as a RuntimeError
         why = _why_unwritable(error, path.parent)
-        Path(tmp).unlink(missing_ok=True)
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
         if why is None:
             raise
         raise CannotWrite(f"cannot write {path}: {why}") from None
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
         raise
 
 

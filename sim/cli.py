@@ -214,7 +214,7 @@ def listing(what: list[str], extra_dirs: list[Path]) -> str:
         return "\n".join(rows)
     if kind == "methods" and not rest:
         methods = discover()
-        lines = (f"{n:16} {(m.__doc__ or '').strip().splitlines()[0]}" for n, m in methods.items())
+        lines = (f"{n:16} {first_line(m.__doc__)}" for n, m in methods.items())
         return "\n".join(sorted(lines))
     if kind == "knobs" and len(rest) == 1:
         name = rest[0]
@@ -362,3 +362,8 @@ def interrupted(out: Path) -> int:
 
 
 INTERRUPTED = 130  # the shell's code for a command stopped by Ctrl-C
+
+
+def first_line(doc: str | None) -> str:
+    """A docstring's first line; a plugin may have none."""
+    return ((doc or "").strip().splitlines() or ["(no description)"])[0]

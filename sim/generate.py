@@ -7,20 +7,17 @@ scenario, seed, and per domain its knobs, split sizes, realised statistics and c
 from __future__ import annotations
 
 import json
-import re
-import shutil
 import sys
 from pathlib import Path
 
-from tqdm import tqdm
-
 from c2inet.errors import InputError
-from c2inet.files import writable_folder, write_text_atomic
+from c2inet.files import file_digest, writable_folder, write_text_atomic
 from sim.cli import add_workers, parse, parser
 from sim.data import SPLITS, Domain
 from sim.domains import build_domain
 from sim.experiment.config import parse_settings
 from sim.io import write_ethucy, write_npz, write_parquet
+from sim.progress import progress_bar
 from sim.scenario import parse_scenario
 from viz.cli import guarded
 
@@ -54,39 +51,53 @@ WRITERS = {
 }
 
 
-def clear_output(out: Path, overwrite: bool) -> None:
-    """Never overwrite silently: an empty or new ``out`` is used as it is; with ``overwrite``,
-    a folder an earlier generate wrote (its ``summary.json`` lists its domains) loses exactly
-    those files; anything else is refused, so nothing this command did not write is touched."""
-    if not out.is_dir() or not any(out.iterdir()):
-        return
-    if not overwrite:
-        raise InputError(f"--out {out}: not empty; add --overwrite to replace an earlier generate")
-    try:
-        summary = json.loads((out / "summary.json").read_text())
-        names = [d["name"] for d in summary["domains"]]
-        if not all(isinstance(n, str) and DOMAIN_NAME.fullmatch(n) for n in names):
-            raise ValueError("a domain name that no domain of ours has")
-        written = [WRITTEN[summary["format"]](out, name) for name in names]
-    except (OSError, ValueError, KeyError, TypeError):
-        raise InputError(
-            f"--overwrite: {out} holds no output of sim.generate (no readable summary.json), so "
-            "nothing is removed; choose another --out"
-        ) from None
-    for path in written:
-        if path.is_dir():
-            shutil.rmtree(path)
-        elif path.exists():
-            path.unlink()
-    (out / "summary.json").unlink()
-
-
 WRITTEN = {  # what each writer leaves for a domain: a file or a folder of its own
     "parquet": lambda out, name: out / f"{name}.parquet",
     "ethucy": lambda out, name: out / name,
     "npz": lambda out, name: out / name,
 }
-DOMAIN_NAME = re.compile(r"[a-z0-9][a-z0-9_.-]*")  # FAMILY_VALUE: never a path, never '..'
+MARKER = ".c2i-generated.json"  # what a generate wrote here: each file's path and SHA-256
+
+
+def clear_output(out: Path, overwrite: bool) -> None:
+    """Never overwrite silently: an empty or new ``out`` is used as it is; with ``overwrite``, a
+    folder an earlier generate wrote loses exactly the files its marker records, each only if
+    its bytes are still the ones written (then the folders they leave empty); anything else is
+    refused. No file a user wrote, however named, is removed on the word of a file."""
+    if not out.is_dir() or not any(out.iterdir()):
+        return
+    if not overwrite:
+        raise InputError(f"--out {out}: not empty; add --overwrite to replace an earlier generate")
+    try:
+        written = json.loads((out / MARKER).read_text())["files"]
+        if not isinstance(written, dict):
+            raise TypeError("not a table of files")
+    except (OSError, ValueError, KeyError, TypeError):
+        raise InputError(
+            f"--overwrite: {out} holds no output of sim.generate (no readable {MARKER}), so "
+            "nothing is removed; choose another --out"
+        ) from None
+    root = out.resolve()
+    folders = set()
+    for name, digest in written.items():
+        path = (out / str(name)).resolve()
+        inside = path.is_relative_to(root) and path != root
+        if inside and path.is_file() and not path.is_symlink() and file_digest(path) == digest:
+            path.unlink()
+            folders.update(p for p in path.parents if p.is_relative_to(root) and p != root)
+    for folder in sorted(folders, key=lambda p: len(p.parts), reverse=True):
+        if folder.is_dir() and not any(folder.iterdir()):
+            folder.rmdir()
+    (out / MARKER).unlink()
+
+
+def record_written(out: Path, paths: list[Path], written: dict[str, str]) -> None:
+    """Add ``paths`` (files, or folders of files) to the marker of what this generate wrote."""
+    for path in paths:
+        for file in sorted(path.rglob("*")) if path.is_dir() else [path]:
+            if file.is_file():
+                written[file.relative_to(out).as_posix()] = file_digest(file)
+    write_text_atomic(out / MARKER, json.dumps({"files": written}, indent=1) + "\n")
 
 
 @guarded
@@ -116,12 +127,13 @@ def main(argv: list[str] | None = None) -> int:
     curriculum = parse_scenario(args.scenario, args.scenarios_dir, settings.get("data"))
     clear_output(args.out, args.overwrite)
     writable_folder(args.out, "--out")
-    domains = []
-    for spec in tqdm(curriculum, desc="domains", unit="domain", file=sys.stderr):
+    domains, written = [], {}
+    for spec in progress_bar(curriculum, desc="domains", unit="domain"):
         domain = build_domain(
             spec, args.seed, workers=args.workers, memory_budget=args.memory_budget
         )
         WRITERS[args.format](domain, args.out)
+        record_written(args.out, [WRITTEN[args.format](args.out, domain.name)], written)
         domains.append(domain)
     summary = {
         "scenario": args.scenario,
@@ -130,6 +142,7 @@ def main(argv: list[str] | None = None) -> int:
         "domains": [d.summary() for d in domains],
     }
     write_text_atomic(args.out / "summary.json", json.dumps(summary, indent=2) + "\n")
+    record_written(args.out, [args.out / "summary.json"], written)
     knob_names = sorted({s.family.knob for s in curriculum if s.family.knob})
     print(format_table(domains, knob_names))
     print(f"wrote {len(domains)} domains to {args.out}: summary.json lists them")

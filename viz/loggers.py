@@ -11,6 +11,7 @@ logger starts its output afresh and ends up complete.
 from __future__ import annotations
 
 import csv
+import hashlib
 import logging
 import os
 import re
@@ -138,9 +139,13 @@ class MLflowLogger:
         self.epochs, self.tasks = epochs, tasks
         self.client, experiment = self.experiment(run_folder, options.get("uri"))
         job = folder.resolve().relative_to(run_folder).as_posix()
-        for old in self.client.search_runs([experiment], f"tags.c2i_job = '{job}'"):
+        # the run folder's own tag: two folders of one name logging to one store stay apart
+        owner = hashlib.sha256(str(run_folder).encode()).hexdigest()[:16]
+        mine = f"tags.c2i_job = '{job}' and tags.c2i_run = '{owner}'"
+        for old in self.client.search_runs([experiment], mine):
             self.client.delete_run(old.info.run_id)  # a resumed job logs everything again
-        run = self.client.create_run(experiment, run_name=job, tags={"c2i_job": job})
+        tags = {"c2i_job": job, "c2i_run": owner, "c2i_folder": str(run_folder)}
+        run = self.client.create_run(experiment, run_name=job, tags=tags)
         self.run_id = run.info.run_id
         params = [_param(k, v) for k, v in (options.get("params") or {}).items()]
         for start in range(0, len(params), 100):  # MLflow takes 100 parameters a request

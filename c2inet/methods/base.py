@@ -16,6 +16,7 @@ from __future__ import annotations
 import importlib
 import importlib.metadata
 import pkgutil
+import re
 import sys
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
@@ -170,6 +171,8 @@ def count_floats(value: Any) -> int:
 
 
 PLUGINS = "c2inet.methods"  # the entry-point group through which other packages add methods
+SKIPPED: set[str] = set()  # broken plugins already reported in this process
+PLUGIN_NAME = re.compile(r"[a-z][a-z0-9_-]{0,39}")  # a name that is also a safe folder name
 
 
 def discover() -> dict[str, type[Method]]:
@@ -181,7 +184,7 @@ def discover() -> dict[str, type[Method]]:
     for module in pkgutil.iter_modules(c2inet.methods.__path__):
         importlib.import_module(f"c2inet.methods.{module.name}")
     for entry in importlib.metadata.entry_points(group=PLUGINS):
-        if entry.name not in METHODS:
+        if entry.name not in METHODS and entry.name not in SKIPPED:
             _load_plugin(entry)
     return METHODS
 
@@ -193,10 +196,20 @@ def _load_plugin(entry: importlib.metadata.EntryPoint) -> None:
         cls = entry.load()
         if not (isinstance(cls, type) and issubclass(cls, Method)):
             raise TypeError(f"{entry.value} is not a subclass of c2inet.methods.base.Method")
-    except Exception as error:  # a third party's code: whatever it raises
-        print(f"warning: method plugin {entry.name!r} skipped: {error}", file=sys.stderr)
+        name = cls.__dict__.get("name")  # its own: a subclass of a built-in inherits its name
+        if not isinstance(name, str) or not PLUGIN_NAME.fullmatch(name):
+            raise TypeError(
+                f"{entry.value} needs a name of its own: lower-case letters, digits, '-' and "
+                f"'_', at most 40 (got {name!r})"
+            )
+        if name in METHODS:
+            raise TypeError(f"its name {name!r} is a built-in method's; choose another")
+    except (Exception, SystemExit) as error:  # a third party's code: whatever it raises
+        why = f"it exited ({error.code})" if isinstance(error, SystemExit) else error
+        print(f"warning: method plugin {entry.name!r} skipped: {why}", file=sys.stderr)
+        SKIPPED.add(entry.name)  # said once: later look-ups do not load it again
         return
-    METHODS[cls.name] = cls
+    METHODS[name] = cls
 
 
 def get_method(name: str) -> type[Method]:

@@ -11,17 +11,15 @@ from __future__ import annotations
 
 import hashlib
 import json
-import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
-
-from tqdm import tqdm
 
 from c2inet.errors import InputError
 from c2inet.files import write_text_atomic
 from sim.experiment.backends import run_jobs
 from sim.experiment.config import Execution
+from sim.progress import progress_bar
 
 CELLS = "cells"
 
@@ -91,7 +89,7 @@ def run_cells(
         if resume and path is not None and path.is_file():
             done[name] = _load(path, identity)
     todo = [(name, args) for name, args in cells.items() if name not in done]
-    with tqdm(total=len(cells), initial=len(done), desc="runs", file=sys.stderr) as bar:
+    with progress_bar(total=len(cells), initial=len(done), desc="runs") as bar:
         results = run_jobs(
             _run_cell,
             todo,

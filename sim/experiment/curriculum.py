@@ -7,13 +7,11 @@ tasks; ``make_showcases`` picks what the recording draws of each task.
 from __future__ import annotations
 
 import os
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
 from c2inet.data import OBS_LEN, PRED_LEN, Windows
 from c2inet.errors import InputError
@@ -23,6 +21,7 @@ from sim.domains import build_domain, rollout_scene
 from sim.experiment.config import Execution, ExperimentConfig
 from sim.families import Splits
 from sim.generators import Generator, get_generator
+from sim.progress import progress_bar
 from sim.scenario import DomainSpec, parse_scenario
 from viz.observer import Showcase
 
@@ -75,7 +74,7 @@ def make_tasks(
 ) -> tuple[list[Task], list]:
     """Domains of the curriculum as learner tasks (windows per split)."""
     tasks, domains = [], []
-    for spec in tqdm(specs, desc="domains", unit="domain", file=sys.stderr, leave=False):
+    for spec in progress_bar(specs, desc="domains", unit="domain", transient=True):
         quick_splits = Splits(*get_generator(spec.family.generator).quick_splits) if quick else None
         domain = build_domain(spec, seed, cache, quick_splits, workers, memory_budget)
         splits = {}

@@ -10,7 +10,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import sys
 import time
 import zipfile
 from collections.abc import Callable
@@ -20,7 +19,6 @@ from typing import Any
 
 import numpy as np
 import torch
-from tqdm import tqdm
 
 from c2inet.errors import InputError
 from c2inet.files import writable_folder, write_atomic, write_text_atomic
@@ -33,6 +31,7 @@ from sim.experiment.curriculum import (
     experiment_tasks,
     make_showcases,
 )
+from sim.progress import progress_bar
 from viz.colours import method_colour
 from viz.loggers import flat_params, make_loggers
 from viz.observer import RecordingObserver, framing, log_truth
@@ -229,10 +228,10 @@ def job_identity(job: Job, config: ExperimentConfig, inputs: JobInputs) -> str:
 
 
 def _epoch_bar(iterable, **options):
-    return tqdm(iterable, file=sys.stderr, unit="epoch", **options)
+    return progress_bar(iterable, unit="epoch", **options)
 
 
-def follow(bar: tqdm) -> Callable[[str, dict], None]:
+def follow(bar) -> Callable[[str, dict], None]:
     """A ``progress`` for ``run_jobs``: the tasks bar moves with finished tasks (its estimate of
     the time left is the whole run's) and shows the newest epoch's training loss."""
 

@@ -33,7 +33,13 @@ import pyarrow.parquet as pq
 import torch
 
 from c2inet.errors import InputError
-from c2inet.files import file_digest, writable_folder, write_atomic, write_text_atomic
+from c2inet.files import (
+    TEMPORARY_SUFFIX,
+    file_digest,
+    writable_folder,
+    write_atomic,
+    write_text_atomic,
+)
 from c2inet.report import (
     compare,
     markdown_report,
@@ -74,7 +80,7 @@ RUN_FILES = {
     *(f"{name}.{ext}" for name in REPORTS for ext in ("json", "md", "png")),
 }
 RUN_FOLDERS = {"jobs", "matrices", "figures", "logs", "tensorboard", "cache", "cells"}
-TEMPORARY = re.compile(r"^\.[^/]+\.[A-Za-z0-9_]{8}$")  # write_atomic's .NAME.XXXXXXXX
+TEMPORARY = re.compile(r"^\.[^/]+\.[A-Za-z0-9_]{8}" + re.escape(TEMPORARY_SUFFIX) + "$")
 
 
 MAX_NAME = 100  # characters of a folder named after a scenario or a setting
@@ -232,7 +238,7 @@ def config_file(argv: list[str]) -> dict[str, str] | None:
 
 def remove_leftovers(out: Path) -> list[Path]:
     """Remove the temporary files that interrupted atomic writes left in a run folder of ours
-    (``.NAME.XXXXXXXX``); returns them."""
+    (``.NAME.XXXXXXXX.c2i-tmp``: never a user's ``.notes.20241201``); returns them."""
     leftovers = [p for p in out.rglob(".*") if p.is_file() and TEMPORARY.match(p.name)]
     for path in leftovers:
         path.unlink()

@@ -15,13 +15,13 @@ from pathlib import Path
 from typing import Any
 
 import torch
-from tqdm import tqdm
 
 from sim.experiment.backends import run_jobs
 from sim.experiment.config import Execution, ExperimentConfig
 from sim.experiment.estimate import describe, job_seconds, run_seconds
 from sim.experiment.jobs import follow, prepare, record_truth, run_job
 from sim.experiment.outputs import TRUTH_PART, claim, output_folder, write_outputs
+from sim.progress import progress_bar
 from viz.live import check_reachable, viewer_url
 from viz.loggers import prepare_tracking
 
@@ -65,7 +65,7 @@ def run_experiment(
             f"{describe(estimate)} of training and evaluation (timed on this machine)",
             file=sys.stderr,
         )
-    with tqdm(total=len(jobs) * tasks, desc="tasks", unit="task", file=sys.stderr) as bar:
+    with progress_bar(total=len(jobs) * tasks, desc="tasks", unit="task") as bar:
         results = run_jobs(
             run_job,
             jobs,

@@ -10,13 +10,10 @@ final scores, mean and std over seeds. ``--set KEY=V1,V2`` sweeps an option over
 from __future__ import annotations
 
 import itertools
-import sys
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
-
-from tqdm import tqdm
 
 from c2inet.errors import InputError
 from c2inet.files import write_text_atomic
@@ -33,6 +30,7 @@ from sim.experiment.outputs import (
     write_outputs,
     write_results,
 )
+from sim.progress import progress_bar
 
 
 @dataclass(frozen=True)
@@ -189,7 +187,7 @@ def run_together(
     items = [(i, job) for i, (_, config, _, _) in enumerate(planned) for job in config.jobs()]
     shared = [(config, curriculum.inputs, folder) for _, config, folder, curriculum in planned]
     tasks = [len(curriculum.inputs.tasks) for *_, curriculum in planned]
-    with tqdm(total=sum(tasks[i] for i, _ in items), desc="tasks", file=sys.stderr) as bar:
+    with progress_bar(total=sum(tasks[i] for i, _ in items), desc="tasks") as bar:
         results = run_jobs(
             _sweep_job,
             items,

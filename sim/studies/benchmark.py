@@ -93,6 +93,7 @@ PRESETS = {
         "crowd_radius_0.1..0.6",
         "crowd_radius_0.15..0.55:0.2",
         "the paper's Table 2 on the ORCA-steered crowd_radius; tuned on radii between its own",
+        {"splits.train": 200},
     ),
     "density": Preset(
         "crowd_density_0.05..0.30:0.05",
@@ -104,6 +105,7 @@ PRESETS = {
         "crowd_noise_0.1..0.6",
         "crowd_noise_0.15..0.55:0.2",
         "behavioural noise of Pymunk crowds; tuned on noise levels between its own",
+        {"splits.train": 60},
     ),
     "eth-ucy": Preset(
         "eth_ucy_univ,eth,zara1,zara2,hotel",

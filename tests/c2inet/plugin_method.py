@@ -18,3 +18,28 @@ class Shrinking(Finetune, register=False):
         if ctx.index > 0:
             for group in ctx.optimiser.param_groups:
                 group["lr"] *= 0.5
+
+
+class Impostor(Finetune, register=False):
+    """Fine-tuning's subclass without a name of its own: it must not pass as ``finetune``."""
+
+
+class Taker(Finetune, register=False):
+    """A plugin that claims a built-in's name."""
+
+    name = "finetune"
+
+
+class Escaper(Finetune, register=False):
+    """A plugin whose name would be a path out of ``--out``."""
+
+    name = "../../escaped"
+
+
+class Undocumented(Finetune, register=False):
+    name = "undocumented"
+
+
+def exiting():
+    """What ``entry.load()`` meets in a plugin that calls ``sys.exit`` at its import."""
+    raise SystemExit(3)

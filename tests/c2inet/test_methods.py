@@ -138,7 +138,53 @@ def test_a_method_of_another_package_joins_through_its_entry_point(monkeypatch, 
     ]
     monkeypatch.setattr(base.importlib.metadata, "entry_points", lambda group: entries)
     monkeypatch.setattr(base, "METHODS", dict(base.METHODS))  # the plugin leaves with the test
+    monkeypatch.setattr(base, "SKIPPED", set())
     methods = discover()
     assert "shrinking" in methods and "broken" not in methods
     assert "method plugin 'broken' skipped" in capsys.readouterr().err
+    discover()
+    get_method("shrinking")
+    assert "skipped" not in capsys.readouterr().err  # said once a process, not at every look-up
     check_method(get_method("shrinking"))
+
+
+@pytest.mark.parametrize(
+    ("entry", "why"),
+    [
+        ("plugin_method:Impostor", "needs a name of its own"),  # would inherit 'finetune'
+        ("plugin_method:Taker", "is a built-in method's"),
+        ("plugin_method:Escaper", "needs a name of its own"),  # a path, not a name
+    ],
+)
+def test_a_plugin_cannot_take_a_built_ins_name_or_a_name_that_is_a_path(
+    monkeypatch, capsys, entry, why
+):
+    monkeypatch.setattr(
+        base.importlib.metadata, "entry_points", lambda group: [EntryPoint("odd", entry, PLUGINS)]
+    )
+    monkeypatch.setattr(base, "METHODS", dict(base.METHODS))
+    monkeypatch.setattr(base, "SKIPPED", set())
+    methods = discover()
+    assert methods["finetune"] is Finetune and "../../escaped" not in methods
+    assert why in capsys.readouterr().err
+
+
+def test_a_plugin_that_exits_at_import_or_has_no_docstring_ends_no_command(monkeypatch, capsys):
+    from sim.cli import listing
+
+    entries = [
+        EntryPoint("exits", "plugin_method:exiting", PLUGINS),  # load() returns it; call below
+        EntryPoint("undocumented", "plugin_method:Undocumented", PLUGINS),
+    ]
+    real_load = EntryPoint.load
+
+    def load(entry):
+        loaded = real_load(entry)
+        return loaded() if entry.name == "exits" else loaded
+
+    monkeypatch.setattr(EntryPoint, "load", load)
+    monkeypatch.setattr(base.importlib.metadata, "entry_points", lambda group: entries)
+    monkeypatch.setattr(base, "METHODS", dict(base.METHODS))
+    monkeypatch.setattr(base, "SKIPPED", set())
+    assert "undocumented     (no description)" in listing(["methods"], [])
+    assert "method plugin 'exits' skipped: it exited (3)" in capsys.readouterr().err

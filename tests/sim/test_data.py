@@ -95,9 +95,25 @@ def test_generate_never_overwrites_silently_and_replaces_only_its_own_files(
     assert main(["--scenario", "tiny_noise_0.3", *common, "--overwrite"]) == 0
     left = sorted(p.name for p in out.iterdir())
     assert left == sorted(
-        ["notes.txt", "summary.json", "tiny_noise_0.3" + (".parquet" if fmt == "parquet" else "")]
+        [
+            ".c2i-generated.json",
+            "notes.txt",
+            "summary.json",
+            "tiny_noise_0.3" + (".parquet" if fmt == "parquet" else ""),
+        ]
     )
-    (out / "summary.json").write_text('{"format": "npz", "domains": [{"name": "../x"}]}')
+    # a summary naming a user's folder as a domain deletes nothing: only the marker's files go,
+    # each only while its bytes are the ones written
+    (out / "src").mkdir()
+    (out / "src" / "code.py").write_text("mine")
+    (out / "summary.json").write_text('{"format": "npz", "domains": [{"name": "src"}]}')
+    assert main(["--scenario", "tiny_noise_0.3", *common, "--overwrite"]) == 0
+    assert (out / "src" / "code.py").read_text() == "mine"
+    assert (out / "summary.json").is_file()  # edited by a user: kept, then written anew
+    (out / ".c2i-generated.json").write_text('{"files": {"../outside": "x", "src/code.py": "0"}}')
+    assert main(["--scenario", "tiny_noise_0.3", *common, "--overwrite"]) == 0
+    assert (out / "src" / "code.py").read_text() == "mine"
+    (out / ".c2i-generated.json").unlink()
     assert main(["--scenario", "tiny_noise_0.3", *common, "--overwrite"]) == 2
     assert "holds no output of sim.generate" in capsys.readouterr().err
     assert (out / "notes.txt").read_text() == "mine"

@@ -15,8 +15,9 @@ import numpy as np
 import pytest
 
 from c2inet.errors import InputError
+from c2inet.files import write_atomic
 from sim.experiment import Execution, ExperimentConfig, run_experiment
-from sim.experiment.outputs import claim, output_folder
+from sim.experiment.outputs import TEMPORARY, claim, output_folder
 
 QUICK = ["--scenario", "crowd_noise_0.1..0.3", "--quick", "--methods", "c2inet-online,finetune"]
 QUICK_CONFIG = {  # QUICK with --epochs EPOCHS, as the engine takes it
@@ -240,13 +241,20 @@ def test_resume_removes_the_temporary_files_of_interrupted_writes(tmp_path):
     claim(run, config, Execution())
     job = run / "jobs" / "cv" / "seed_0"
     job.mkdir(parents=True)
-    leftovers = [run / ".recording.rrd.k2j4_9xq", job / ".result.json.ab12cd34"]
-    for path in leftovers:
+    leftovers = [run / ".recording.rrd.k2j4_9xq.c2i-tmp", job / ".result.json.ab12cd34.c2i-tmp"]
+    users = [job / ".hidden-notes", run / ".bashrc.original", run / ".notes.20241201"]
+    for path in leftovers + users:
         path.write_text("half")
-    (job / ".hidden-notes").write_text("not ours")
     claim(run, config, Execution(), resume=True)
     assert not any(p.exists() for p in leftovers)
-    assert (job / ".hidden-notes").exists()
+    assert all(p.exists() for p in users)  # shaped like temporaries, but not write_atomic's
+
+
+def test_write_atomic_names_its_temporary_so_a_resume_can_tell_it_from_a_users_file(tmp_path):
+    seen = []
+    write_atomic(tmp_path / "result.json", lambda tmp: (seen.append(tmp), tmp.write_text("{}")))
+    assert TEMPORARY.match(seen[0].name) and not seen[0].exists()
+    assert (tmp_path / "result.json").read_text() == "{}"
 
 
 def test_a_sweeps_nested_runs_count_as_ours_and_a_stray_file_among_them_does_not(tmp_path):

@@ -50,6 +50,26 @@ def test_mlflow_keeps_every_parameter_and_metric_in_requests_a_server_takes(
     assert len(tracked.data.metrics) == 1200
 
 
+def test_two_run_folders_of_one_name_logging_to_one_store_keep_each_others_runs(tmp_path):
+    """``projA/exp/r`` and ``projB/exp/r`` share an experiment name in a shared store; a job of
+    one (resumed) replaces only its own earlier run, never the other folder's."""
+    pytest.importorskip("mlflow")
+    uri = f"sqlite:///{tmp_path / 'shared.db'}"
+    runs = [tmp_path / project / "exp" / "r" for project in ("projA", "projB")]
+    for run in [*runs, runs[0]]:  # projA's job runs again: resumed
+        job = run / "jobs" / "finetune" / "seed_0"
+        job.mkdir(parents=True, exist_ok=True)
+        MLflowLogger.experiment(run, uri)
+        logger = MLflowLogger(job, 1, ["a"], run_folder=run, uri=uri)
+        logger("epoch_end", {"task": 0, "epoch": 0, "nll": 1.0})
+        logger.close()
+    experiment = logger.client.get_experiment_by_name("exp/r")
+    folders = [
+        r.data.tags["c2i_folder"] for r in logger.client.search_runs([experiment.experiment_id])
+    ]
+    assert sorted(folders) == sorted(str(run.resolve()) for run in runs)
+
+
 def test_a_resumed_job_has_one_wandb_run_not_two(tmp_path: Path):
     """A resumed job replays its finished tasks' events: its W&B folder is started afresh, so
     the job holds one run, not an interrupted one beside a complete one."""
