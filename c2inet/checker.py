@@ -225,12 +225,14 @@ def check_devices(cls: type[Method], audit: DeviceAudit) -> None:
 
 
 def check_live(cls: type[Method], tasks: list[Task], whole: Result, config=CHECK_CONFIG):
-    """Switching the method's mechanism off (``cls.inert``) must change the numbers."""
+    """Switching each of the method's mechanisms off (``cls.inert``: a switch set, or a list of
+    them) must change the numbers."""
     if cls.inert is None:
         return
-    result, _ = _run(cls, tasks, cls.inert, config=config)
-    if _same(result, whole):
-        _fail(cls, f"its mechanism is inert: options {cls.inert} change nothing")
+    for switches in cls.inert if isinstance(cls.inert, list) else [cls.inert]:
+        result, _ = _run(cls, tasks, switches, config=config)
+        if _same(result, whole):
+            _fail(cls, f"its mechanism is inert: options {switches} change nothing")
 
 
 def check_method(cls: type[Method], device: str = "cpu") -> None:

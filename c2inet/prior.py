@@ -152,6 +152,7 @@ class QueueConfig:
     """
 
     capacity: int = 45  # gamma
+    eq17: bool = True  # the training KL of C against the queue's mixture; off: against N(0, I)
     weight_opt: bool = True  # Eq 9; off: uniform weights ("average weight parameters")
     divergence: bool = True  # Table 4's switch: the symmetric-KL diversity term of Eq 8 and pruning
     pruning: bool = True
@@ -247,7 +248,11 @@ class PriorQueue:
 
     def training_prior(self) -> GaussianMixture:
         """The prior of the training KL: the whole mixture (Eq 17), or with ``task_kl`` the
-        newest task's components (BooVAE)."""
+        newest task's components (BooVAE); without ``eq17``, N(0, I): the queue then reaches
+        training only through the anchors."""
+        if not self.config.eq17:
+            zeros = self.mixture.means.new_zeros(1, self.dim)
+            return GaussianMixture(zeros, zeros, zeros.new_ones(1))
         if self.config.task_kl and self.owners[-1] >= 0:
             return self.task_mixture(self.owners[-1])
         return self.mixture

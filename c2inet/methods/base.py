@@ -79,8 +79,9 @@ class Method:
     sees_old_tasks: ClassVar[bool] = False  # True only for the joint upper reference
     Options: ClassVar[type] = NoOptions  # a frozen dataclass of the method's options
     # options that switch the method's mechanism off, changing nothing else (no other use of
-    # the random streams): the checker requires them to change the numbers
-    inert: ClassVar[dict[str, Any] | None] = None
+    # the random streams): the checker requires them to change the numbers. A method with
+    # several mechanisms declares a list, one switch set per mechanism, each checked alone
+    inert: ClassVar[dict[str, Any] | list[dict[str, Any]] | None] = None
     # what a tuner searches beside the learning rate (``TRAIN_SPACE``): the method's own
     # options by name, shared scopes as ``model.KEY``; every method gets the same trials
     search_space: ClassVar[dict[str, Tunable | Choice]] = {}

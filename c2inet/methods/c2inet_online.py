@@ -51,6 +51,9 @@ class C2INetOnline(Method):
     name = "c2inet-online"
     search_space = C2INET_SPACE
     Options = C2INetOptions
+    # its two ways into training, each required to act: the KL of C against the queue's mixture
+    # (Eq 17), and the anchors that hold the decoder and Q(C|X) to the past components
+    inert = [{"eq17": False}, {"distill_decoder": False, "distill_encoder": False}]
 
     def __init__(self, model_config, options: dict[str, Any] | None = None):
         super().__init__(model_config, options)

@@ -20,11 +20,17 @@ from viz.figures import study_figure
 
 ETH_UCY = "eth_ucy_univ,eth,zara1,zara2,hotel"  # the paper's order U-E-Z1-Z2-H
 C2INET = "c2inet-online"
-OFF = {
+OFF = {  # one switch a row, then the paper's last row: its composite, labelled as one
     "full": {},
-    "no weight optimisation": {C2INET: {"weight_opt": False}},
+    "no queue (Eq 17 and the anchors off)": {
+        C2INET: {"eq17": False, "distill_decoder": False, "distill_encoder": False}
+    },
+    "no Eq 17 (KL of C against N(0, I))": {C2INET: {"eq17": False}},
+    "no Eq 8 (no fitted components)": {C2INET: {"interval": 10**6}},
+    "no weight optimisation (Eq 9)": {C2INET: {"weight_opt": False}},
     "no divergence": {C2INET: {"divergence": False}},
-    "no weight optimisation, divergence or KL of Z": {
+    "no pruning": {C2INET: {"pruning": False}},
+    "composite: no weight optimisation, divergence or KL of Z (the paper's last row)": {
         C2INET: {"weight_opt": False, "divergence": False},
         "model": {"beta_z": 0.0},
     },

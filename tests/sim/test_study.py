@@ -21,7 +21,8 @@ def test_table4_writes_its_table_json_and_figure(tmp_path, capsys):
     finals = [r["avg_seen_ade"][-1] for r in rows]
     assert len(set(finals)) > 1, "every switch changed nothing"
     table = (tmp_path / "study.md").read_text()
-    assert table.count("| no ") == 3 and "The paper:" in table
+    assert table.count("| no ") == 6 and "The paper:" in table  # one switch a row
+    assert "| composite: no weight optimisation, divergence or KL of Z" in table
     assert (tmp_path / "study.png").read_bytes()[:4] == b"\x89PNG"
 
 
