@@ -15,7 +15,7 @@ import torch
 
 from c2inet.errors import InputError
 
-DEVICE_NAMES = re.compile(r"auto|cpu|cuda(:\d+)?|mps")
+DEVICE_NAMES = re.compile(r"auto|cpu|cuda(:\d{1,4})?|mps")  # no GPU index beyond 9999
 
 
 def check_device_name(name: str) -> None:

@@ -73,9 +73,25 @@ def write_text_atomic(path: Path, text: str) -> None:
     write_atomic(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
 
+NAME_BYTES, PATH_BYTES = 255, 4096  # what Linux file systems take
+
+
+def check_path_length(path: Path, option: str) -> Path:
+    """``path`` itself, or an :class:`InputError` naming ``option`` where the file system
+    would refuse it as too long (a name over 255 bytes, a path over 4096)."""
+    text = os.fsencode(path)
+    if len(text) > PATH_BYTES or any(len(part) > NAME_BYTES for part in text.split(b"/")):
+        raise InputError(
+            f"{option} {str(path)[:60]}...: too long for a file system (a name has at most "
+            f"{NAME_BYTES} bytes, a path {PATH_BYTES})"
+        )
+    return path
+
+
 def writable_folder(path: Path, option: str) -> Path:
     """Create folder ``path`` when missing and check that files can be written in it; an
     :class:`InputError` naming ``option`` (e.g. ``--cache``) otherwise."""
+    check_path_length(path, option)
     if path.exists() and not path.is_dir():
         raise InputError(f"{option} {path}: not a folder")
     try:

@@ -154,19 +154,42 @@ def _typed(path: Path, key: str, value: Any) -> None:
         raise InputError(f"--config {path}: {key} = {value!r}: expected {expected}")
 
 
+MAX_CONFIG_BYTES = 1 << 20  # a configuration is a few kilobytes; more is not one of ours
+# what a run's config.json may carry over from its execution table: how much of this machine
+# to use. Where data goes (a cache folder, a tracking server, a viewer, a Ray cluster) is never
+# taken from someone else's file
+SAFE_EXECUTION = ("backend", "jobs", "threads", "workers", "memory_budget")
+
+
 def read_config(path: Path) -> dict[str, Any]:
     """A configuration file as one flat table: TOML, or JSON such as a run's ``config.json``
-    (whose ``experiment`` and ``execution`` tables are merged)."""
+    (its ``experiment`` table, and of its ``execution`` table the keys of
+    :data:`SAFE_EXECUTION`, said on stderr)."""
     try:
+        if not path.is_file():  # a FIFO or a device would never end
+            raise OSError("not a regular file")
+        if path.stat().st_size > MAX_CONFIG_BYTES:
+            raise OSError(f"larger than {MAX_CONFIG_BYTES} bytes")
         text = path.read_text(encoding="utf-8")
         data = json.loads(text) if path.suffix == ".json" else tomllib.loads(text)
-    except (OSError, UnicodeDecodeError, ValueError) as error:
-        raise InputError(f"--config {path}: cannot read it: {one_line(str(error))}") from None
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as error:
+        why = "nested too deeply" if isinstance(error, RecursionError) else str(error)
+        raise InputError(f"--config {path}: cannot read it: {one_line(why)}") from None
     if not isinstance(data, dict):
         raise InputError(f"--config {path}: expected a table of options")
     if isinstance(data.get("experiment"), dict):
         execution = data.get("execution")
-        data = {**(execution if isinstance(execution, dict) else {}), **data["experiment"]}
+        execution = execution if isinstance(execution, dict) else {}
+        taken = {k: v for k, v in execution.items() if k in SAFE_EXECUTION}
+        left = sorted(k for k, v in execution.items() if k not in taken and v)
+        if taken or left:
+            print(
+                f"--config {path}: of its execution, applies "
+                f"{', '.join(f'{k}={v}' for k, v in sorted(taken.items())) or 'nothing'}"
+                + (f"; not {', '.join(left)} (give them as flags)" if left else ""),
+                file=sys.stderr,
+            )
+        data = {**taken, **data["experiment"]}
     return data
 
 

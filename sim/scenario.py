@@ -179,6 +179,15 @@ def parse_scenario(
     duplicates = sorted({n for n in names if names.count(n) > 1})
     if duplicates:
         raise InputError(f"scenario {quote(scenario)}: domain {duplicates[0]!r} appears twice")
+    seen: dict[tuple[str, Any], str] = {}  # one value under two spellings (0.1 and 00.1)
+    for spec in curriculum:
+        key = (spec.family.name, spec.value)
+        if key in seen:
+            raise InputError(
+                f"scenario {quote(scenario)}: {spec.label!r} and {seen[key]!r} are one value of "
+                f"family {spec.family.name!r}; name it once"
+            )
+        seen[key] = spec.label
     if len(curriculum) > MAX_DOMAINS:
         raise InputError(f"scenario {quote(scenario)}: more than {MAX_DOMAINS} domains")
     return curriculum

@@ -16,6 +16,7 @@ from typing import Any
 from c2inet.backbones import BACKBONES
 from c2inet.device import resolve_device
 from c2inet.errors import InputError, did_you_mean
+from c2inet.files import check_path_length
 from c2inet.methods.base import get_method
 from c2inet.model import ModelConfig
 from c2inet.options import build
@@ -176,7 +177,7 @@ class Execution:
                     f"--rerun {self.rerun[:80]!r}: expected spawn, connect or connect=URL"
                 )
             viewer_url(self.rerun)
-        if self.cache.exists() and not self.cache.is_dir():
+        if check_path_length(self.cache, "--cache").exists() and not self.cache.is_dir():
             raise InputError(f"--cache {self.cache}: not a folder")
         if self.ray_address is not None and self.backend != "ray":
             raise InputError("--ray-address: only with --backend ray")

@@ -80,6 +80,7 @@ RUN_FILES = {
     *(f"{name}.{ext}" for name in REPORTS for ext in ("json", "md", "png")),
 }
 RUN_FOLDERS = {"jobs", "matrices", "figures", "logs", "tensorboard", "cache", "cells"}
+MAX_CONFIG_BYTES = 1 << 20  # a run's config.json is a few kilobytes
 TEMPORARY = re.compile(r"^\.[^/]+\.[A-Za-z0-9_]{8}" + re.escape(TEMPORARY_SUFFIX) + "$")
 
 
@@ -161,7 +162,7 @@ def _claim_locked(
     """The part of :func:`claim` done under the folder's lock."""
     saved = out / "config.json"
     if resume:
-        before = json.loads(saved.read_text())["experiment"]
+        before = saved_experiment(saved)
         now = json.loads(json.dumps(config.to_json()))
         changed = sorted(k for k in now if before.get(k) != now[k])
         if changed:
@@ -183,6 +184,23 @@ def _claim_locked(
     mark_run(out)
     data = {"experiment": config.to_json(), "execution": _plain(asdict(execution))}
     write_text_atomic(saved, json.dumps(data, indent=1) + "\n")
+
+
+def saved_experiment(saved: Path) -> dict[str, Any]:
+    """The ``experiment`` table of a run's ``config.json``; a damaged file is one clear error."""
+    try:
+        if saved.stat().st_size > MAX_CONFIG_BYTES:
+            raise ValueError(f"larger than {MAX_CONFIG_BYTES} bytes")
+        experiment = json.loads(saved.read_text())["experiment"]
+        if not isinstance(experiment, dict):
+            raise TypeError("its experiment is not a table")
+    except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError, RecursionError) as error:
+        why = f"no {error}" if isinstance(error, KeyError) else str(error).splitlines()[0]
+        raise InputError(
+            f"--resume: {saved} is damaged ({why}); it cannot say what the run was, so nothing "
+            "is resumed: use --overwrite to start the run again"
+        ) from None
+    return experiment
 
 
 def _holds_files(out: Path) -> bool:

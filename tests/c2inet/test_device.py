@@ -30,6 +30,8 @@ def test_device_names_resolve_or_fail_in_one_line(monkeypatch):
         resolve_device("cuda:1")
     with pytest.raises(InputError, match="'gpu' is none of auto, cpu, cuda"):
         TrainConfig(device="gpu")
+    with pytest.raises(InputError, match="is none of"):  # an index torch cannot hold
+        TrainConfig(device="cuda:99999999999999999999")
 
 
 def test_the_audit_names_each_tensor_made_without_a_device():

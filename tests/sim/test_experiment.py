@@ -250,6 +250,20 @@ def test_resume_removes_the_temporary_files_of_interrupted_writes(tmp_path):
     assert all(p.exists() for p in users)  # shaped like temporaries, but not write_atomic's
 
 
+@pytest.mark.parametrize(
+    "damage", [b'{"experiment": {"scen', b"[]", b"{}", b"\xff\xfe\x00binary", b'{"experiment": 3}']
+)
+def test_resume_of_a_run_whose_config_json_is_damaged_is_one_clear_refusal(tmp_path, damage):
+    config = ExperimentConfig("crowd_noise_0.1", methods=("cv",), quick=True, record=False)
+    run = tmp_path / "run"
+    claim(run, config, Execution())
+    (run / "config.json").write_bytes(damage)
+    with pytest.raises(InputError, match=r"config.json is damaged .*--overwrite"):
+        claim(run, config, Execution(), resume=True)
+    claim(run, config, Execution(), overwrite=True)  # ours (marked): replaced
+    assert json.loads((run / "config.json").read_text())["experiment"]["scenario"]
+
+
 def test_write_atomic_names_its_temporary_so_a_resume_can_tell_it_from_a_users_file(tmp_path):
     seen = []
     write_atomic(tmp_path / "result.json", lambda tmp: (seen.append(tmp), tmp.write_text("{}")))

@@ -207,6 +207,9 @@ def test_seeds_give_mean_and_std(tmp_path, capsys):
         (["--scenario", "crowd_noise_0.1", "--logger", "wandb=cloud"], "offline or online"),
         (["--scenario", "crowd_noise_0.1", "--logger", "csv=x"], "only mlflow=URI and wandb"),
         (["--scenario", "crowd_noise_0.1", "--seed", "-1"], "--seed: -1 is not between 0 and"),
+        (["--scenario", "crowd_noise_0.1", "--cache", "x" * 5000], "too long for a file system"),
+        (["--scenario", "crowd_noise_0.1", "--device", "cuda:" + "9" * 20], "is none of auto"),
+        (["--scenario", "crowd_radius_0.1,00.1"], "are one value of family"),
     ],
 )
 def test_bad_options_give_one_error_line(capsys, args, message):
@@ -454,6 +457,44 @@ def test_a_config_file_gives_the_options_and_flags_override_it(tmp_path, capsys)
         "argument --epochs: -3 is not between 0"
         in refused(capsys, "--config", str(tmp_path / "bad.toml"))[-1]
     )
+
+
+def test_a_config_file_that_never_ends_or_sends_data_away_is_refused_or_trimmed(tmp_path, capsys):
+    """A FIFO, a device, a huge or deeply nested file is one line; of a run's config.json only
+    the execution settings that size the work on this machine are taken, and it says so."""
+    import os
+
+    from c2inet.errors import InputError
+    from sim.cli import read_config
+
+    fifo = tmp_path / "fifo.toml"
+    os.mkfifo(fifo)
+    deep = tmp_path / "deep.json"
+    deep.write_text("[" * 5000 + "]" * 5000)
+    huge = tmp_path / "huge.toml"
+    huge.write_text("# " + "x" * (1 << 21) + "\n")
+    for path, why in (
+        (fifo, "not a regular file"),
+        (Path("/dev/zero"), "not a regular file"),
+        (deep, "nested too deeply"),
+        (huge, "larger than"),
+    ):
+        with pytest.raises(InputError, match=why):
+            read_config(path)
+    theirs = tmp_path / "config.json"
+    execution = {
+        "jobs": 2,
+        "cache": "/elsewhere",
+        "loggers": ["mlflow=http://far.example"],
+        "rerun": "rerun+http://far.example/proxy",
+        "ray_address": "far:6379",
+    }
+    theirs.write_text(
+        json.dumps({"experiment": {"scenario": "crowd_noise_0.1"}, "execution": execution})
+    )
+    assert read_config(theirs) == {"jobs": 2, "scenario": "crowd_noise_0.1"}
+    said = capsys.readouterr().err
+    assert "applies jobs=2; not cache, loggers, ray_address, rerun (give them as flags)" in said
 
 
 def test_a_run_prints_its_estimate_first_and_a_quick_run_does_not(tmp_path, capsys):

@@ -98,6 +98,7 @@ def test_data_overrides_change_knobs_and_split_sizes():
         ("crowd_density_5", "impossible density"),
         ("crowd_noise_0.1+", "empty part"),
         ("crowd_noise_0.1+crowd_noise_0.1", "appears twice"),
+        ("crowd_radius_0.1,00.1", "are one value of family"),  # two spellings, one domain
         ("eth_ucy_paris", "not a value"),
         ("", "empty"),
         ("crowd_noise_0.001..10", "more than"),
