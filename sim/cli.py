@@ -390,3 +390,39 @@ INTERRUPTED = 130  # the shell's code for a command stopped by Ctrl-C
 def first_line(doc: str | None) -> str:
     """A docstring's first line; a plugin may have none."""
     return ((doc or "").strip().splitlines() or ["(no description)"])[0]
+
+
+def toml_value(value: Any) -> str:
+    """One TOML value: text, a number, true/false, or a list of them."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int | float):
+        return repr(value)
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    return json.dumps(str(value))  # a JSON string is a TOML basic string
+
+
+def resolved_config(config, execution) -> str:
+    """The configuration a run of ``config`` on ``execution`` uses, as a ``--config`` file:
+    every option, defaults included, then each settings scope as a table."""
+    lines = [
+        f"scenario = {toml_value(config.scenario)}",
+        f"methods = {toml_value(config.methods)}",
+        *(
+            f"{key} = {toml_value(getattr(config, key))}"
+            for key in ("seed", "seeds", "epochs", "k", "backbone", "quick", "record", "device")
+        ),
+        *(
+            f"{key} = {toml_value(getattr(execution, key))}"
+            for key in ("backend", "jobs", "threads", "workers")
+        ),
+    ]
+    if config.scenarios_dir:
+        lines.append(f"scenarios_dir = {toml_value([str(d) for d in config.scenarios_dir])}")
+    for scope, values in sorted(config.settings.items()):
+        lines += ["", f"[settings.{json.dumps(scope) if '-' in scope else scope}]"]
+        lines += [
+            f"{json.dumps(k) if '.' in k else k} = {toml_value(v)}" for k, v in values.items()
+        ]
+    return "\n".join(lines) + "\n"

@@ -20,6 +20,7 @@ from sim.cli import (
     experiment_options,
     parse,
     parser,
+    resolved_config,
 )
 from sim.experiment import ExperimentConfig, run_experiment
 from sim.experiment.outputs import output_folder
@@ -46,12 +47,20 @@ def main(argv: list[str] | None = None) -> int:
         help="also stream live to a viewer: spawn one, or connect to one (default URL "
         "rerun+http://127.0.0.1:9876/proxy)",
     )
+    p.add_argument(
+        "--print-config",
+        action="store_true",
+        help="print the resolved configuration as a --config TOML file and stop",
+    )
     argv = sys.argv[1:] if argv is None else argv
     args = parse(p, argv)
     if args is None:
         return 0
     config = ExperimentConfig(args.scenario, **experiment_options(args))
     execution = execution_of(args)
+    if args.print_config:
+        print(resolved_config(config, execution), end="")
+        return 0
     out = output_folder(args.scenario, args.out, args.resume)
     started = time.perf_counter()
     try:

@@ -32,6 +32,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import torch
 
+from c2inet.device import resolve_device
 from c2inet.errors import InputError
 from c2inet.files import (
     TEMPORARY_SUFFIX,
@@ -435,6 +436,7 @@ def write_outputs(
         "backend": execution.backend,
         "jobs": execution.jobs,
         "threads": torch.get_num_threads(),  # what torch uses, not only what was asked
+        "device_used": str(resolve_device(config.device)),  # "auto" resolved on this machine
         "wall_seconds": round(wall, 1),
         "model": asdict(config.model_config()),
         "train": asdict(config.train_config()),

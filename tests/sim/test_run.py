@@ -99,6 +99,7 @@ def test_quick_run_writes_every_output(tmp_path, capsys):
         card["threads"] == 1 and card["train"]["k_train"] == 5 and card["train"]["device"] == "cpu"
     )
     assert all(d["hash"] for d in card["domains"])
+    assert card["device_used"] == "cpu"  # the device resolved, not only the one asked for
     assert (out / "report.md").read_text().startswith("# Continual run")
     assert card["command"].startswith("python -m sim.run --scenario crowd_noise_0.1..0.3")
     assert card["backend"] == "local" and card["host"] and card["finished"].startswith("20")
@@ -457,6 +458,18 @@ def test_a_config_file_gives_the_options_and_flags_override_it(tmp_path, capsys)
         "argument --epochs: -3 is not between 0"
         in refused(capsys, "--config", str(tmp_path / "bad.toml"))[-1]
     )
+
+
+def test_print_config_gives_a_file_that_runs_as_the_same_configuration(tmp_path, capsys):
+    argv = ["--scenario", "crowd_noise_0.1..0.3", "--methods", "finetune,c2inet-online"]
+    argv += ["--set", "c2inet-online.pruning=false", "--set", "data.splits.train=10", "--epochs=3"]
+    assert main([*argv, "--print-config"]) == 0
+    printed = capsys.readouterr().out
+    assert 'methods = ["finetune", "c2inet-online"]' in printed and "epochs = 3" in printed
+    assert '[settings."c2inet-online"]\npruning = false' in printed
+    (tmp_path / "printed.toml").write_text(printed)
+    assert main(["--config", str(tmp_path / "printed.toml"), "--print-config"]) == 0
+    assert capsys.readouterr().out == printed  # read back, it resolves to itself
 
 
 def test_a_config_file_that_never_ends_or_sends_data_away_is_refused_or_trimmed(tmp_path, capsys):
