@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -274,12 +275,25 @@ def markdown_report(
     parts = [f"# Continual run: `{scenario}`", ""]
     if run is not None:
         kind = "**quick** (tiny sizes: a smoke test, not a result)" if run["quick"] else "full"
+        seeds = (
+            "**one seed** (no spread: a first look, not a result)"
+            if run["seeds"] == 1
+            else f"{run['seeds']} seeds per method (cells are means; ± is the std over seeds)"
+        )
         parts += [
-            f"Run: {kind}; {run['epochs']} epochs per task; {run['seeds']} seed(s) per method "
-            f"(cells are means; ± is the std over seeds); best of K = {k}; "
+            f"Run: {kind}; {run['epochs']} epochs per task; {seeds}; best of K = {k}; "
             f"wall time {run['wall_seconds']:.0f} s.",
             "",
         ]
+        if run.get("command"):
+            parts += ["Command:", "", f"    {run['command']}", ""]
+        links = [f"[{Path(f).stem}]({f})" for f in run.get("figures", [])]
+        if run.get("recording"):
+            links.append(
+                f"the recording [{run['recording']}]({run['recording']}) (`rerun` opens it)"
+            )
+        if links:
+            parts += ["Figures and recording: " + ", ".join(links) + ".", ""]
     parts += [
         "Cells are ADE/FDE in metres averaged over the tasks seen so far after each task (the "
         "paper's Table 2). Forgetting of ADE, mean over tasks but the last: *final* is the final "

@@ -453,11 +453,15 @@ def write_outputs(
         "epochs": config.epochs,
         "seeds": config.seeds,
         "wall_seconds": wall,
+        "command": shlex.join(argv),
+        "recording": "recording.rrd" if config.record else None,
+        "figures": [],
     }
-    report = markdown_report(config.scenario, labels, config.k, summary, run)
-    write_text_atomic(out / "report.md", report)
     if figures:
         draw_figures(out, curriculum, summary, results)
+        run["figures"] = sorted(p.relative_to(out).as_posix() for p in out.glob("figures/*.png"))
+    report = markdown_report(config.scenario, labels, config.k, summary, run)
+    write_text_atomic(out / "report.md", report)
     if truth is not None:
         truth.log_run_card(f"{report}\n## Run card\n\n```json\n{card}\n```\n")
         truth.close()

@@ -3,6 +3,7 @@
 import csv
 import json
 import math
+import re
 import shutil
 import struct
 import subprocess
@@ -100,7 +101,14 @@ def test_quick_run_writes_every_output(tmp_path, capsys):
     )
     assert all(d["hash"] for d in card["domains"])
     assert card["device_used"] == "cpu"  # the device resolved, not only the one asked for
-    assert (out / "report.md").read_text().startswith("# Continual run")
+    report = (out / "report.md").read_text()
+    assert report.startswith("# Continual run") and "**quick**" in report
+    assert "**one seed** (no spread" in report  # one seed is marked, not passed off as spread
+    assert "    python -m sim.run --scenario crowd_noise_0.1..0.3" in report
+    assert "[average_seen](figures/average_seen.png)" in report
+    assert "[recording.rrd](recording.rrd)" in report
+    for link in re.findall(r"\]\(([^)]+)\)", report):
+        assert (out / link).is_file(), link  # every link opens
     assert card["command"].startswith("python -m sim.run --scenario crowd_noise_0.1..0.3")
     assert card["backend"] == "local" and card["host"] and card["finished"].startswith("20")
     assert card["git_commit"] is None or len(card["git_commit"]) >= 40
