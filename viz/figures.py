@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -16,8 +17,34 @@ from c2inet.data import Windows  # noqa: E402
 from c2inet.files import write_atomic  # noqa: E402
 from viz.colours import FUTURE, OBSERVED, as_matplotlib, method_colour  # noqa: E402
 
+_NOTES: list[str | None] = []  # what every figure drawn inside marked() says across it
+
+
+@contextmanager
+def marked(note: str | None):
+    """Figures saved inside carry ``note`` (e.g. that the sizes were quick) across their middle,
+    so a figure passed on alone still says what it is; None: no note."""
+    _NOTES.append(note)
+    try:
+        yield
+    finally:
+        _NOTES.pop()
+
 
 def _save(fig, path: Path) -> Path:
+    if _NOTES and _NOTES[-1]:
+        fig.text(
+            0.5,
+            0.5,
+            _NOTES[-1],
+            ha="center",
+            va="center",
+            fontsize=18,
+            color="red",
+            alpha=0.35,
+            rotation=20,
+            transform=fig.transFigure,
+        )
     write_atomic(path, lambda tmp: fig.savefig(tmp, format="png", dpi=110, bbox_inches="tight"))
     plt.close(fig)
     return path

@@ -364,6 +364,7 @@ def summarise_jobs(config: ExperimentConfig, results: list[JobResult]) -> dict[s
 
 
 COLUMNS = ("scenario", "method", "seed", "setting", "after_task", "on_task", "metric", "value")
+COLUMNS += ("quick",)  # tiny smoke-test sizes: never to be read as a result
 
 
 def tidy_rows(label: str, config: ExperimentConfig, results: list[JobResult]) -> dict[str, list]:
@@ -374,9 +375,8 @@ def tidy_rows(label: str, config: ExperimentConfig, results: list[JobResult]) ->
         cell = (config.scenario, done.job.method, config.seed + done.job.seed_index)
         for metric, matrix in done.result.matrices.items():
             for (i, after), (j, on) in itertools.product(enumerate(tasks), enumerate(tasks)):
-                for column, value in zip(
-                    COLUMNS, (*cell, label, after, on, metric, float(matrix[i, j])), strict=True
-                ):
+                values = (*cell, label, after, on, metric, float(matrix[i, j]), config.quick)
+                for column, value in zip(COLUMNS, values, strict=True):
                     rows[column].append(value)
     return rows
 
@@ -458,7 +458,8 @@ def write_outputs(
         "figures": [],
     }
     if figures:
-        draw_figures(out, curriculum, summary, results)
+        note = "quick sizes: a smoke test, not a result" if config.quick else None
+        draw_figures(out, curriculum, summary, results, note)
         run["figures"] = sorted(p.relative_to(out).as_posix() for p in out.glob("figures/*.png"))
     report = markdown_report(config.scenario, labels, config.k, summary, run)
     write_text_atomic(out / "report.md", report)
@@ -473,11 +474,18 @@ def write_outputs(
     return metrics
 
 
-def draw_figures(out: Path, curriculum: Curriculum, summary: dict, results: list[JobResult]):
+def draw_figures(
+    out: Path, curriculum: Curriculum, summary: dict, results: list[JobResult], note=None
+):
     """A run's figures: every method's error matrix and per-task ADE, the average over seen
-    tasks, and the sample predictions."""
+    tasks, and the sample predictions; each carries ``note`` (quick sizes) where given."""
     from viz import figures  # matplotlib: imported by the run that draws, not by every command
 
+    with figures.marked(note):
+        _draw_figures(figures, out, curriculum, summary, results)
+
+
+def _draw_figures(figures, out: Path, curriculum: Curriculum, summary: dict, results) -> None:
     labels = curriculum.labels
     families = [s.family.name for s in curriculum.specs]
     for name, result in summary.items():

@@ -113,16 +113,31 @@ def combined_report(entries: list[tuple[str, ExperimentConfig, dict]]) -> str:
         "| scenario | setting | method | seeds | avg ADE best-of-K | avg ADE K=1 | forgetting |",
         "|---|---|---|---|---|---|---|",
     ]
+    marks = set()
     for label, config, metrics in entries:
         for name, m in metrics["methods"].items():
-            best = f"{m['avg_seen_ade'][-1]:.3f} ± {m['avg_seen_ade_std'][-1]:.3f}"
-            single = f"{m['avg_seen_ade_k1'][-1]:.3f} ± {m['avg_seen_ade_k1_std'][-1]:.3f}"
+            best, single = (_spread(m, key) for key in ("avg_seen_ade", "avg_seen_ade_k1"))
             forgetting = f"{m['forgetting_final_ade']:+.3f}"
+            seeds = str(m["seeds"]) + (" (one: no spread)" if m["seeds"] == 1 else "")
+            scenario = config.scenario + (" **quick**" if config.quick else "")
+            marks |= {"quick"} if config.quick else set()
+            marks |= {"one seed"} if m["seeds"] == 1 else set()
             lines.append(
-                f"| {config.scenario} | {label} | {name} | {m['seeds']} | {best} | {single} | "
-                f"{forgetting} |"
+                f"| {scenario} | {label} | {name} | {seeds} | {best} | {single} | {forgetting} |"
             )
+    if marks:
+        lines[1:1] = [
+            f"**{' and '.join(sorted(marks))}**: rows so marked are a smoke test or a first "
+            "look, not a result.",
+            "",
+        ]
     return "\n".join(lines) + "\n"
+
+
+def _spread(m: dict[str, Any], key: str) -> str:
+    """A final score with its spread over seeds; no spread where one seed gives none."""
+    mean = f"{m[key][-1]:.3f}"
+    return mean if m["seeds"] == 1 else f"{mean} ± {m[key + '_std'][-1]:.3f}"
 
 
 def run_sweep(

@@ -69,6 +69,7 @@ def test_quick_run_writes_every_output(tmp_path, capsys):
     tidy = pq.read_table(out / "results.parquet").to_pydict()  # every matrix cell, one row each
     ade = [v for k, v in zip(tidy["metric"], tidy["value"], strict=True) if k == "ade"]
     assert len(ade) == 3 * 9 and set(tidy["method"]) == {"c2inet-online", "finetune", "cv"}
+    assert set(tidy["quick"]) == {True}  # every row says it is a smoke test
     assert metrics["tasks"] == ["crowd_noise_0.1", "crowd_noise_0.2", "crowd_noise_0.3"]
     for name in ("c2inet-online", "finetune", "cv"):
         m = metrics["methods"][name]

@@ -109,3 +109,22 @@ def test_a_sweep_stopped_before_claiming_every_folder_resumes(tmp_path, capsys):
     assert sweep_main([*argv, "--resume"]) == 2
     assert "notes.txt" in capsys.readouterr().err
     assert (second / "notes.txt").read_text() == "mine"
+
+
+def test_the_sweep_report_marks_quick_and_single_seed_rows_and_shows_no_spread_for_one():
+    from sim.experiment.sweep import combined_report
+
+    def metrics(seeds: int) -> dict:
+        m = {"seeds": seeds, "forgetting_final_ade": 0.01}
+        for key in ("avg_seen_ade", "avg_seen_ade_k1"):
+            m[key], m[key + "_std"] = [0.2], [0.0 if seeds == 1 else 0.02]
+        return {"methods": {"finetune": m}}
+
+    quick = ExperimentConfig("crowd_noise_0.1", methods=("finetune",), quick=True)
+    full = ExperimentConfig("crowd_noise_0.2", methods=("finetune",))
+    report = combined_report([("a", quick, metrics(1)), ("b", full, metrics(3))])
+    assert "**one seed and quick**" in report
+    one, three = [line for line in report.splitlines() if line.startswith("| crowd_")]
+    assert "crowd_noise_0.1 **quick**" in one and "1 (one: no spread)" in one and "±" not in one
+    assert "**quick**" not in three and "0.200 ± 0.020" in three
+    assert "**" not in combined_report([("b", full, metrics(3))])

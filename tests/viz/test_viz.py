@@ -314,3 +314,20 @@ def test_every_registered_method_gets_a_colour_of_its_own():
     assert len(colours) == len(names) == len(methods)
     assert all(c not in colours for c in ((150, 150, 150), (40, 170, 60)))  # truth's colours
     assert legend_markdown(methods).count("**") == 2 * len(methods)
+
+
+def test_a_figure_drawn_inside_marked_carries_the_note_and_one_outside_does_not(tmp_path):
+    """Quick sizes are marked on the figure itself, so a figure passed on alone still says so."""
+    from matplotlib.image import imread
+
+    from viz import figures
+
+    methods = {"finetune": {"avg_seen_ade": [0.2, 0.3], "avg_seen_ade_std": [0.0, 0.0]}}
+    plain = figures.average_seen(methods, ["a", "b"], tmp_path / "plain.png")
+    with figures.marked("quick sizes: a smoke test, not a result"):
+        noted = figures.average_seen(methods, ["a", "b"], tmp_path / "noted.png")
+    red = [
+        (img[..., 0] > 0.6) & (img[..., 1] < 0.8) & (img[..., 2] < 0.8)
+        for img in (imread(plain), imread(noted))
+    ]
+    assert red[1].sum() > red[0].sum() + 500  # the note's red letters
