@@ -527,6 +527,28 @@ def make_anchors(model: C2INetModel, components: GaussianMixture, count: int) ->
     return Anchors(cond[0], past[-1], future, inputs, post.c_mean, post.c_logvar)
 
 
+@torch.no_grad()
+def anchors_from_windows(
+    model: C2INetModel, windows: Windows, components: GaussianMixture, count: int
+) -> Anchors:
+    """Anchors at stored training windows: ``count`` agents of ``windows`` (each its own
+    one-agent pseudo-scene, its observed past in metres), C drawn from the component of
+    ``components`` most responsible for its Q(C|X), Z ~ N(0, I), and what the network made of
+    them. The inputs are data and the latents follow the components they stand for."""
+    device = components.means.device
+    pick = torch.randperm(len(windows.positions), device="cpu")[:count].sort().values.numpy()
+    inputs = Windows(windows.positions[pick].copy(), np.arange(len(pick) + 1))
+    batch = make_batch(inputs, device=device)
+    post = model.posteriors(batch)
+    k = responsibilities(components, post.c_mean, post.c_logvar).argmax(-1)
+    noise = torch.randn(1, *post.c_mean.shape, device=device)
+    c = gaussian_sample(components.means[k], components.logvars[k], noise)
+    z = torch.randn(1, len(pick), model.config.z_dim, device=device)
+    cond = model.conditions(batch, post, z, c)
+    future = model.backbone.decode(cond, batch.last_rel)[:, 0]
+    return Anchors(cond[0], batch.last_rel, future, inputs, post.c_mean, post.c_logvar)
+
+
 class ConstantVelocity(nn.Module):
     """Repeats the last observed displacement: no training, the floor every learner must beat."""
 

@@ -17,6 +17,7 @@ from c2inet.options import choose, require
 
 LOG_2PI = math.log(2 * math.pi)
 FITS = ("autograd", "closed")  # how Eq 8's component fit takes its gradient
+ANCHOR_INPUTS = ("decoded", "windows")  # where the anchors' pseudo-inputs come from
 
 
 def gaussian_log_prob(x: torch.Tensor, mean: torch.Tensor, logvar: torch.Tensor) -> torch.Tensor:
@@ -161,6 +162,11 @@ class QueueConfig:
     distill_encoder: bool = True  # BooVAE: hold Q(C|X) to its values at old pseudo-inputs
     mass_bounds: bool = True  # keep each task's share of the weights within [0.5/t, 2/t]
     anchors: int = 64  # anchors stored per task for the two distillations
+    # where the anchors' pseudo-inputs come from: the past decoder's output at the task's
+    # components ("decoded", BooVAE's way; untrained unless model.beta_x > 0), or agents of the
+    # task's own training windows, stored and counted as memory, each with C drawn from the
+    # component most responsible for it ("windows": data-like inputs that follow the components)
+    anchor_inputs: str = "decoded"
     anchor_batch: int = 32  # anchors drawn for each training step
     distill_weight: float = 1.0
     lambda_div: float = 0.1
@@ -176,6 +182,7 @@ class QueueConfig:
         require(self, 0, "distill_weight", "lambda_div")
         require(self, 0, "fit_lr", high=10, open_low=True)
         choose(self, "fit", FITS)
+        choose(self, "anchor_inputs", ANCHOR_INPUTS)
 
 
 def eq8_objective(mean, logvar, noise, target, current, lambda_div: float) -> torch.Tensor:

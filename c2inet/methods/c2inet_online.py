@@ -26,7 +26,13 @@ import torch
 
 from c2inet.batch import make_batch
 from c2inet.methods.base import Method, TaskContext
-from c2inet.model import C2INET_SPACE, Anchors, C2INetModel, make_anchors
+from c2inet.model import (
+    C2INET_SPACE,
+    Anchors,
+    C2INetModel,
+    anchors_from_windows,
+    make_anchors,
+)
 from c2inet.options import require
 from c2inet.prior import GaussianMixture, QueueConfig, mix, moment_match
 
@@ -128,7 +134,11 @@ class C2INetOnline(Method):
         self.queue_sizes.append(len(queue))
         hold = self.queue_config.distill_decoder or self.queue_config.distill_encoder
         if hold and ctx.index in queue.owners:  # pruning may remove all of a task's components
-            new = make_anchors(model, queue.task_mixture(ctx.index), self.options.anchors)
+            components, count = queue.task_mixture(ctx.index), self.options.anchors
+            if self.queue_config.anchor_inputs == "windows":
+                new = anchors_from_windows(model, ctx.train, components, count)
+            else:
+                new = make_anchors(model, components, count)
             model.anchors = new if model.anchors is None else Anchors.concat([model.anchors, new])
 
     def state_dict(self, model: torch.nn.Module) -> dict[str, Any]:

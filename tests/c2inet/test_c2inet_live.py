@@ -12,7 +12,7 @@ from c2inet.data import Windows
 from c2inet.diagnostics import diagnose, mutual_information, probe_accuracy
 from c2inet.methods.base import TaskContext, get_method
 from c2inet.methods.c2inet_online import C2INetOptions
-from c2inet.model import ModelConfig, make_anchors
+from c2inet.model import ModelConfig, anchors_from_windows, make_anchors
 from c2inet.prior import GaussianMixture, PriorQueue, QueueConfig
 from c2inet.trainer import ContinualTrainer, Task, TrainConfig
 
@@ -452,3 +452,31 @@ def test_the_queues_prior_reaches_the_weights_of_q_c_through_eq17(trained):
     model.queue.config = dataclasses.replace(model.queue.config, eq17=True)
     assert not torch.allclose(grads[0.0, True], grads[0.0, False])
     assert torch.equal(grads[8.0, True], grads[8.0, False])
+
+
+def test_data_like_anchors_are_the_stored_windows_and_follow_the_components(trained):
+    """``anchor_inputs=windows``: the pseudo-inputs are agents of the task's own training
+    windows (other windows, other anchors), each C drawn from the component most responsible
+    for it (other components, other latents), and a run counts them as kept memory."""
+    model, _ = trained
+    east, north = (task.train for task in toy_tasks())
+    components = model.queue.mixture
+    torch.manual_seed(0)
+    from_east = anchors_from_windows(model, east, components, 16)
+    torch.manual_seed(0)
+    from_north = anchors_from_windows(model, north, components, 16)
+    stored = {track.tobytes() for track in east.positions}
+    assert all(track.tobytes() in stored for track in from_east.inputs.positions)
+    assert not np.allclose(from_east.inputs.positions, from_north.inputs.positions)
+    assert not torch.allclose(from_east.cond, from_north.cond)
+    shifted = GaussianMixture(components.means + 3.0, components.logvars, components.weights)
+    torch.manual_seed(0)
+    moved = anchors_from_windows(model, east, shifted, 16)
+    dc = model.config.c_dim
+    assert torch.allclose(moved.cond[:, -dc:], from_east.cond[:, -dc:] + 3.0, atol=1e-4)
+    method = get_method("c2inet-online")(ModelConfig(), {"interval": 2, "anchor_inputs": "windows"})
+    trainer = ContinualTrainer(method, toy_tasks(), TrainConfig(epochs=2, k=3, k_train=2))
+    result = trainer.run()
+    anchors = trainer.model.anchors
+    assert len(anchors) == 2 * 64 and anchors.inputs.positions.shape[1:] == (20, 2)
+    assert result.summaries[-1]["memory_floats"] >= anchors.inputs.positions.size
