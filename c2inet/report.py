@@ -236,7 +236,10 @@ def diagnostics_table(diagnostics: list[dict[str, Any]], labels: list[str]) -> s
     return markdown_table(rows)
 
 
-def caption(k: int, seeds: int, metric: str = "ade") -> str:
+UNIT_NAMES = {"m": "metres", "px": "pixels"}
+
+
+def caption(k: int, seeds: int, metric: str = "ade", unit: str = "m") -> str:
     """What the cells of :func:`table_rows` are, in a sentence."""
     samples = f"best of K = {k} samples, the minimum taken per scene (joint)"
     if metric == "ade_k1":
@@ -245,8 +248,9 @@ def caption(k: int, seeds: int, metric: str = "ade") -> str:
         samples = "one random draw (the first of the K samples)"
     spread = f"mean ± std of ADE over {seeds} seeds" if seeds > 1 else "one seed"
     return (
-        f"ADE/FDE in metres, {samples}, averaged over the tasks seen so far after each task "
-        f"({spread}); forgetting of ADE in metres (final: final minus best earlier error; "
+        f"ADE/FDE in {UNIT_NAMES[unit]}, {samples}, averaged over the tasks seen so far after "
+        f"each task ({spread}); forgetting of ADE in {UNIT_NAMES[unit]} (final: final minus best "
+        "earlier error; "
         "worst: worst error after leaving a task minus the error right after it)."
     )
 
@@ -273,6 +277,7 @@ def markdown_report(
     """The run's report: how it ran (``run``: quick, epochs, seeds, wall_seconds), the
     Table-2-style summaries, then every method's matrices and diagnostics."""
     parts = [f"# Continual run: `{scenario}`", ""]
+    unit = (run or {}).get("unit", "m")
     if run is not None:
         kind = "**quick** (tiny sizes: a smoke test, not a result)" if run["quick"] else "full"
         seeds = (
@@ -295,7 +300,8 @@ def markdown_report(
         if links:
             parts += ["Figures and recording: " + ", ".join(links) + ".", ""]
     parts += [
-        "Cells are ADE/FDE in metres averaged over the tasks seen so far after each task (the "
+        f"Cells are ADE/FDE in {UNIT_NAMES[unit]} averaged over the tasks seen so far after "
+        "each task (the "
         "paper's Table 2). Forgetting of ADE, mean over tasks but the last: *final* is the final "
         "error minus the best earlier one (Chaudhry et al. 2018), *worst* the worst error after "
         "leaving a task minus the error right after training it.",
@@ -320,7 +326,8 @@ def markdown_report(
         "",
         markdown_table(table_rows(methods, labels, "ade_draw")),
     ]
-    collided = [(n, m) for n, m in methods.items() if "avg_seen_col_pred" in m]
+    # the collision distance is in metres: a recording in pixels has no collision figure yet
+    collided = [(n, m) for n, m in methods.items() if "avg_seen_col_pred" in m and unit == "m"]
     if collided:
         rows = [["method", "Col-I (predictions)", "Col-II (truths)"]]
         rows += [

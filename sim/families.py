@@ -65,6 +65,7 @@ class Family:
     defaults: dict[str, Any] = field(default_factory=dict)
     splits: Splits = Splits()
     values: dict[str, dict[str, Any]] = field(default_factory=dict)
+    unit: str = "m"  # of the positions: metres, or pixels (a recording not yet scaled)
 
     @property
     def value_names(self) -> tuple[str, ...]:
@@ -110,6 +111,8 @@ def available_families(extra_dirs: list[Path]) -> dict[str, Path]:
 MAX_FAMILY_BYTES = 1_000_000
 VALUE_NAME = r"[a-z0-9][a-z0-9_-]*(\.[a-z0-9_-]+)*"  # e.g. "univ", "0.1": safe in file names
 _FAMILY_KEYS = {"description", "generator", "knob", "seed_offset", "knobs", "splits", "values"}
+_FAMILY_KEYS |= {"unit"}
+UNITS = {"m": "metres", "px": "pixels"}  # what a family's positions are in
 
 
 def toml_table(raw: dict, key: str, path: Path) -> dict:
@@ -154,6 +157,9 @@ def load_family(path: Path) -> Family:
     for name, table in values.items():
         if not re.fullmatch(VALUE_NAME, name) or not isinstance(table, dict):
             raise InputError(f"{path}: bad value table {name!r}")
+    unit = raw.get("unit", "m")
+    if unit not in UNITS:
+        raise InputError(f"{path}: unit {unit!r}: expected one of {', '.join(UNITS)}")
     seed_offset = raw.get("seed_offset", 0)
     if isinstance(seed_offset, bool) or not isinstance(seed_offset, int) or seed_offset < 0:
         raise InputError(f"{path}: seed_offset must be a non-negative integer")
@@ -167,6 +173,7 @@ def load_family(path: Path) -> Family:
         defaults=defaults,
         splits=build(Splits, toml_table(raw, "splits", path), f"{path} [splits]"),
         values=values,
+        unit=unit,
     )
     if not values:  # the defaults alone must already be a valid knob set
         build(generator.Knobs, defaults, f"{path} [knobs]")

@@ -76,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return INTERRUPTED
-    print(caption(config.k, config.seeds))
+    print(caption(config.k, config.seeds, unit=config.unit))
     print(text_table(metrics["methods"], metrics["labels"]))
     print(f"wall time {time.perf_counter() - started:.0f} s; wrote {out}: open report.md")
     if config.record:

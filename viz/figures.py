@@ -17,26 +17,31 @@ from c2inet.data import Windows  # noqa: E402
 from c2inet.files import write_atomic  # noqa: E402
 from viz.colours import FUTURE, OBSERVED, as_matplotlib, method_colour  # noqa: E402
 
-_NOTES: list[str | None] = []  # what every figure drawn inside marked() says across it
+_NOTES: list[tuple[str | None, str]] = []  # (note, unit) of the figures drawn inside labelled()
 
 
 @contextmanager
-def marked(note: str | None):
+def labelled(note: str | None = None, unit: str = "m"):
     """Figures saved inside carry ``note`` (e.g. that the sizes were quick) across their middle,
-    so a figure passed on alone still says what it is; None: no note."""
-    _NOTES.append(note)
+    so a figure passed on alone still says what it is, and give errors and scale bars in
+    ``unit`` (m, or px for a recording not yet scaled)."""
+    _NOTES.append((note, unit))
     try:
         yield
     finally:
         _NOTES.pop()
 
 
+def _unit() -> str:
+    return _NOTES[-1][1] if _NOTES else "m"
+
+
 def _save(fig, path: Path) -> Path:
-    if _NOTES and _NOTES[-1]:
+    if _NOTES and _NOTES[-1][0]:
         fig.text(
             0.5,
             0.5,
-            _NOTES[-1],
+            _NOTES[-1][0],
             ha="center",
             va="center",
             fontsize=18,
@@ -82,10 +87,10 @@ def error_matrix(
     ax.set_xlabel("evaluated on task")
     ax.set_ylabel("after training through task")
     if mixed:
-        ax.set_title(f"{name}: ADE (m); colour scaled per family, low to high")
+        ax.set_title(f"{name}: ADE ({_unit()}); colour scaled per family, low to high")
     else:
-        ax.set_title(f"{name}: ADE (m)")
-        fig.colorbar(image, ax=ax, label="ADE (m)")
+        ax.set_title(f"{name}: ADE ({_unit()})")
+        fig.colorbar(image, ax=ax, label=f"ADE ({_unit()})")
     return _save(fig, path)
 
 
@@ -97,7 +102,7 @@ def per_task(name: str, matrix: list[list[float]], labels: list[str], path: Path
         ax.plot(range(j, len(labels)), data[j:, j], marker="o", label=label)
     ax.set_xticks(range(len(labels)), labels)
     ax.set_xlabel("after training through task")
-    ax.set_ylabel("ADE (m)")
+    ax.set_ylabel(f"ADE ({_unit()})")
     ax.set_title(f"{name}: per-task ADE")
     ax.legend(fontsize=7, title="task")
     return _save(fig, path)
@@ -114,7 +119,7 @@ def average_seen(methods: dict[str, dict[str, Any]], labels: list[str], path: Pa
         ax.fill_between(range(len(mean)), mean - std, mean + std, alpha=0.15, color=colour)
     ax.set_xticks(range(len(labels)), [labels[0], *(":" + lab for lab in labels[1:])])
     ax.set_xlabel("after training through task (:x = averaged over the tasks up to x)")
-    ax.set_ylabel("average ADE over seen tasks (m)")
+    ax.set_ylabel(f"average ADE over seen tasks ({_unit()})")
     ax.legend(fontsize=8)
     return _save(fig, path)
 
@@ -170,13 +175,15 @@ def prediction_grid(
 
 
 def _scale_bar(ax) -> None:
-    """A bar of a round length in metres, in the panel's lower left corner."""
+    """A bar of a round length (1, 2 or 5 times a power of ten, in the figures' unit) near a
+    fifth of the panel's width, in its lower left corner."""
     (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
     span = x1 - x0
-    length = next((v for v in (0.5, 1, 2, 5, 10, 20, 50, 100) if v >= span / 5), 200)
+    power = 10.0 ** np.floor(np.log10(max(span / 5, 1e-9)))
+    length = next(f * power for f in (1, 2, 5, 10) if f * power >= span / 5)
     x, y = x0 + 0.05 * span, y0 + 0.06 * (y1 - y0)
     ax.plot([x, x + length], [y, y], color="black", lw=2)
-    ax.text(x + length / 2, y + 0.02 * (y1 - y0), f"{length:g} m", ha="center", fontsize=7)
+    ax.text(x + length / 2, y + 0.02 * (y1 - y0), f"{length:g} {_unit()}", ha="center", fontsize=7)
 
 
 # The studies' figures (sim.studies): each takes the study's report.

@@ -65,6 +65,7 @@ class ExperimentConfig:
         fill(self, "k", self.k if self.k is not None else (5 if self.quick else 20))
         if not self.specs:  # parsed here, once: a bad scenario or data override fails now
             raise InputError(f"scenario {self.scenario!r}: no domain")
+        self.unit  # noqa: B018  (refuses a curriculum that mixes metres and pixels, now)
         if not self.methods:
             raise InputError("methods: no method named")
         if len(set(self.methods)) != len(self.methods):
@@ -107,6 +108,18 @@ class ExperimentConfig:
         """The curriculum's domains, with the ``data`` settings applied to their knobs (parsed
         once per configuration)."""
         return parse_scenario(self.scenario, list(self.scenarios_dir), self.settings.get("data"))
+
+    @property
+    def unit(self) -> str:
+        """What the curriculum's positions, so its errors, are in: ``m`` or ``px``; a curriculum
+        that mixes the two has no unit its errors could be averaged in."""
+        units = {spec.family.unit for spec in self.specs}
+        if len(units) > 1:
+            raise InputError(
+                f"scenario {self.scenario!r}: mixes families in {' and '.join(sorted(units))}; "
+                "averaged errors need one unit"
+            )
+        return units.pop()
 
     def model_config(self) -> ModelConfig:
         return build(

@@ -412,6 +412,7 @@ def write_outputs(
         "k": config.k,
         "seed": config.seed,
         "epochs": config.epochs,
+        "unit": config.unit,
         "methods": summary,
         "comparison": compare(summary),
     }
@@ -455,11 +456,12 @@ def write_outputs(
         "wall_seconds": wall,
         "command": shlex.join(argv),
         "recording": "recording.rrd" if config.record else None,
+        "unit": config.unit,
         "figures": [],
     }
     if figures:
         note = "quick sizes: a smoke test, not a result" if config.quick else None
-        draw_figures(out, curriculum, summary, results, note)
+        draw_figures(out, curriculum, summary, results, note, config.unit)
         run["figures"] = sorted(p.relative_to(out).as_posix() for p in out.glob("figures/*.png"))
     report = markdown_report(config.scenario, labels, config.k, summary, run)
     write_text_atomic(out / "report.md", report)
@@ -475,13 +477,18 @@ def write_outputs(
 
 
 def draw_figures(
-    out: Path, curriculum: Curriculum, summary: dict, results: list[JobResult], note=None
+    out: Path,
+    curriculum: Curriculum,
+    summary: dict,
+    results: list[JobResult],
+    note: str | None = None,
+    unit: str = "m",
 ):
     """A run's figures: every method's error matrix and per-task ADE, the average over seen
-    tasks, and the sample predictions; each carries ``note`` (quick sizes) where given."""
+    tasks, and the sample predictions, in ``unit``; each carries ``note`` (quick sizes)."""
     from viz import figures  # matplotlib: imported by the run that draws, not by every command
 
-    with figures.marked(note):
+    with figures.labelled(note, unit):
         _draw_figures(figures, out, curriculum, summary, results)
 
 

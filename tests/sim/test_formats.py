@@ -175,3 +175,24 @@ def test_the_sdd_example_family_reads_a_location_across_its_videos(tmp_path):
     domain = build_domain(spec, 0)
     assert len(domain.scenes["train"]) == 6 and len(domain.scenes["test"]) == 1
     assert domain.stats["mean_speed"] == pytest.approx(12 / 0.4)  # pixels per second
+
+
+def test_a_pixel_familys_run_reports_pixels_and_a_mix_of_units_is_refused(tmp_path, capsys):
+    from sim.experiment import ExperimentConfig
+    from sim.run import main
+
+    example = Path(__file__).parents[2] / "examples" / "sdd.toml"
+    (tmp_path / "sdd.toml").write_text(example.read_text())
+    for video in range(7):
+        folder = tmp_path / "annotations" / "bookstore" / f"video{video}"
+        folder.mkdir(parents=True)
+        (folder / "annotations.txt").write_text(sdd_annotations(300))
+    out = tmp_path / "run"
+    argv = ["--scenarios-dir", str(tmp_path), "--scenario", "sdd_bookstore", "--methods", "cv"]
+    assert main([*argv, "--quick", "--no-record", "--out", str(out)]) == 0
+    assert "ADE/FDE in pixels" in capsys.readouterr().out
+    assert "ADE/FDE in pixels" in (out / "report.md").read_text()
+    assert "metres" not in (out / "report.md").read_text()
+    assert json.loads((out / "metrics.json").read_text())["unit"] == "px"
+    with pytest.raises(InputError, match="mixes families in m and px"):
+        ExperimentConfig("sdd_bookstore+crowd_noise_0.1", ("cv",), scenarios_dir=(tmp_path,))

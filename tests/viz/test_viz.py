@@ -316,7 +316,7 @@ def test_every_registered_method_gets_a_colour_of_its_own():
     assert legend_markdown(methods).count("**") == 2 * len(methods)
 
 
-def test_a_figure_drawn_inside_marked_carries_the_note_and_one_outside_does_not(tmp_path):
+def test_a_figure_drawn_inside_labelled_carries_the_note_and_one_outside_does_not(tmp_path):
     """Quick sizes are marked on the figure itself, so a figure passed on alone still says so."""
     from matplotlib.image import imread
 
@@ -324,7 +324,7 @@ def test_a_figure_drawn_inside_marked_carries_the_note_and_one_outside_does_not(
 
     methods = {"finetune": {"avg_seen_ade": [0.2, 0.3], "avg_seen_ade_std": [0.0, 0.0]}}
     plain = figures.average_seen(methods, ["a", "b"], tmp_path / "plain.png")
-    with figures.marked("quick sizes: a smoke test, not a result"):
+    with figures.labelled("quick sizes: a smoke test, not a result"):
         noted = figures.average_seen(methods, ["a", "b"], tmp_path / "noted.png")
     red = [
         (img[..., 0] > 0.6) & (img[..., 1] < 0.8) & (img[..., 2] < 0.8)
