@@ -46,7 +46,8 @@ def parser(
         "--list",
         nargs="+",
         metavar="WHAT",
-        help="print what exists and stop: families, methods, or knobs FAMILY",
+        help="print what exists and stop: families, methods, backbones, generators, studies, "
+        "or knobs FAMILY",
     )
     p.add_argument(
         "--seed", type=bounded_int(0, 2**63 - 1), default=0, help="root seed (default 0)"
@@ -235,10 +236,8 @@ def listing(what: list[str], extra_dirs: list[Path]) -> str:
             sets = family.knob or "scene names: " + ",".join(family.value_names)
             rows.append(f"{name:18} {family.generator:8} {sets:18} {family.description}")
         return "\n".join(rows)
-    if kind == "methods" and not rest:
-        methods = discover()
-        lines = (f"{n:16} {first_line(m.__doc__)}" for n, m in methods.items())
-        return "\n".join(sorted(lines))
+    if kind in registries() and not rest:
+        return registries()[kind].describe()
     if kind == "knobs" and len(rest) == 1:
         name = rest[0]
         if name not in families:
@@ -256,7 +255,23 @@ def listing(what: list[str], extra_dirs: list[Path]) -> str:
         splits = dataclasses.asdict(family.splits)
         lines.append(f"scenes per split: {splits} (--set data.splits.train=N, ...)")
         return "\n".join(lines)
-    raise InputError(f"--list {' '.join(what)}: expected families, methods, or knobs FAMILY")
+    kinds = ", ".join(["families", *registries()])
+    raise InputError(f"--list {' '.join(what)}: expected {kinds}, or knobs FAMILY")
+
+
+def registries() -> dict[str, Any]:
+    """Every extension point's registry by the word ``--list`` takes."""
+    from c2inet.backbones.base import REGISTRY as backbones
+    from c2inet.methods.base import REGISTRY as methods
+    from sim.generators.base import REGISTRY as generators
+    from sim.studies.base import REGISTRY as studies  # the studies import the engine: late
+
+    return {
+        "methods": methods,
+        "backbones": backbones,
+        "generators": generators,
+        "studies": studies,
+    }
 
 
 def add_experiment_options(
@@ -385,11 +400,6 @@ def interrupted(out: Path) -> int:
 
 
 INTERRUPTED = 130  # the shell's code for a command stopped by Ctrl-C
-
-
-def first_line(doc: str | None) -> str:
-    """A docstring's first line; a plugin may have none."""
-    return ((doc or "").strip().splitlines() or ["(no description)"])[0]
 
 
 def toml_value(value: Any) -> str:

@@ -1,32 +1,37 @@
-"""The backbone registry: ``@register("name")`` on a class adds it; :func:`discover` imports
-every module of ``c2inet.backbones`` so that a new file is all a new backbone needs."""
+"""The backbone registry: ``@register("name")`` on a class adds it; :data:`REGISTRY` finds every
+module of ``c2inet.backbones`` (a new file is all a new backbone needs) and the entry points of
+the group ``c2inet.backbones`` (another package's backbones)."""
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
+from typing import Any
 
-BACKBONES: dict[str, type] = {}
-NOT_BACKBONES = {"base", "checker"}  # the package's own modules that define none
+from c2inet.registry import Registry
+
+
+def _is_backbone(entry: Any) -> str | None:
+    needs = ("context_dim", "encode", "decode")
+    if isinstance(entry, type) and all(hasattr(entry, attr) for attr in needs):
+        return None
+    return f"{entry!r} is not a backbone class (it needs context_dim, encode and decode)"
+
+
+REGISTRY: Registry[type] = Registry(
+    "backbone", "c2inet.backbones", "c2inet.backbones", _is_backbone, skip=("base", "checker")
+)
+BACKBONES = REGISTRY.entries  # name -> class
 
 
 def register(name: str):
     """Class decorator: the backbone ``name`` (a name given twice is an error)."""
 
     def add(cls: type) -> type:
-        if name in BACKBONES and BACKBONES[name] is not cls:
-            raise ValueError(f"backbone name {name!r} registered twice")
         cls.name = name
-        BACKBONES[name] = cls
-        return cls
+        return REGISTRY.add(name, cls)
 
     return add
 
 
 def discover() -> dict[str, type]:
-    """Every backbone: the modules of ``c2inet.backbones`` register their classes on import."""
-    package = importlib.import_module("c2inet.backbones")
-    for module in pkgutil.iter_modules(package.__path__):
-        if module.name not in NOT_BACKBONES:
-            importlib.import_module(f"c2inet.backbones.{module.name}")
-    return BACKBONES
+    """Every backbone: this package's modules and the plugins of ``c2inet.backbones``."""
+    return REGISTRY.discover()

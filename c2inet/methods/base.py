@@ -13,11 +13,6 @@ are found by :func:`discover`; :mod:`c2inet.checker` checks each against the con
 
 from __future__ import annotations
 
-import importlib
-import importlib.metadata
-import pkgutil
-import re
-import sys
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -27,11 +22,12 @@ import torch
 from c2inet.batch import Batch
 from c2inet.data import Windows
 from c2inet.device import model_device
-from c2inet.errors import did_you_mean
 from c2inet.model import LossOutput, ModelConfig, Predictor
 from c2inet.options import Choice, Tunable, build
+from c2inet.registry import Registry
 
-METHODS: dict[str, type[Method]] = {}
+REGISTRY: Registry[type[Method]] = Registry("method", "c2inet.methods", "c2inet.methods")
+METHODS = REGISTRY.entries  # name -> class, filled as the method modules are imported
 
 
 @dataclass
@@ -172,50 +168,24 @@ def count_floats(value: Any) -> int:
 
 
 PLUGINS = "c2inet.methods"  # the entry-point group through which other packages add methods
-SKIPPED: set[str] = set()  # broken plugins already reported in this process
-PLUGIN_NAME = re.compile(r"[a-z][a-z0-9_-]{0,39}")  # a name that is also a safe folder name
+
+
+def _is_method(entry: Any) -> str | None:
+    if isinstance(entry, type) and issubclass(entry, Method):
+        return None
+    return f"{entry!r} is not a subclass of c2inet.methods.base.Method"
+
+
+REGISTRY.accepts = _is_method
 
 
 def discover() -> dict[str, type[Method]]:
     """Every method: the modules of ``c2inet.methods`` register their classes on import, and so
     do other packages' entry points of the group ``c2inet.methods`` (name = the method's name,
     value = its class, e.g. ``mine = "my_package.methods:Mine"``)."""
-    import c2inet.methods
-
-    for module in pkgutil.iter_modules(c2inet.methods.__path__):
-        importlib.import_module(f"c2inet.methods.{module.name}")
-    for entry in importlib.metadata.entry_points(group=PLUGINS):
-        if entry.name not in METHODS and entry.name not in SKIPPED:
-            _load_plugin(entry)
-    return METHODS
-
-
-def _load_plugin(entry: importlib.metadata.EntryPoint) -> None:
-    """Register an entry point's method; a broken plugin is a warning, not the end of every
-    command."""
-    try:
-        cls = entry.load()
-        if not (isinstance(cls, type) and issubclass(cls, Method)):
-            raise TypeError(f"{entry.value} is not a subclass of c2inet.methods.base.Method")
-        name = cls.__dict__.get("name")  # its own: a subclass of a built-in inherits its name
-        if not isinstance(name, str) or not PLUGIN_NAME.fullmatch(name):
-            raise TypeError(
-                f"{entry.value} needs a name of its own: lower-case letters, digits, '-' and "
-                f"'_', at most 40 (got {name!r})"
-            )
-        if name in METHODS:
-            raise TypeError(f"its name {name!r} is a built-in method's; choose another")
-    except (Exception, SystemExit) as error:  # a third party's code: whatever it raises
-        why = f"it exited ({error.code})" if isinstance(error, SystemExit) else error
-        print(f"warning: method plugin {entry.name!r} skipped: {why}", file=sys.stderr)
-        SKIPPED.add(entry.name)  # said once: later look-ups do not load it again
-        return
-    METHODS[name] = cls
+    return REGISTRY.discover()
 
 
 def get_method(name: str) -> type[Method]:
-    discover()
-    if name not in METHODS:
-        hint = did_you_mean(name, METHODS)
-        raise KeyError(f"unknown method {name!r}{hint} (known: {', '.join(sorted(METHODS))})")
-    return METHODS[name]
+    """The method called ``name`` (an :class:`~c2inet.registry.UnknownName` otherwise)."""
+    return REGISTRY.get(name)

@@ -71,10 +71,7 @@ class ExperimentConfig:
         if len(set(self.methods)) != len(self.methods):
             raise InputError(f"methods: a method is named twice in {','.join(self.methods)}")
         for name in self.methods:
-            try:
-                get_method(name)
-            except KeyError as error:
-                raise InputError(f"methods: {error.args[0]}") from None
+            get_method(name)  # an unknown one: UnknownName, an InputError naming the known ones
         resolve_device(self.device)  # a device this machine lacks fails before any work
         if self.backbone not in BACKBONES:
             raise InputError(f"backbone {self.backbone!r}: expected one of {sorted(BACKBONES)}")

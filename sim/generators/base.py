@@ -8,17 +8,26 @@ a generator against that contract (a test runs it over every registered one).
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
 from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
 
 from c2inet.errors import InputError
+from c2inet.registry import Registry
 from sim.data import Domain
 
-GENERATORS: dict[str, type[Generator]] = {}
+
+def _is_generator(entry: Any) -> str | None:
+    if isinstance(entry, type) and issubclass(entry, Generator):
+        return None
+    return f"{entry!r} is not a subclass of sim.generators.base.Generator"
+
+
+REGISTRY: Registry[type[Generator]] = Registry(
+    "generator", "sim.generators", "sim.generators", _is_generator
+)
+GENERATORS = REGISTRY.entries  # name -> class
 
 
 class Generator:
@@ -34,7 +43,7 @@ class Generator:
         """Defining a subclass registers it under its name (``register=False``: not)."""
         super().__init_subclass__(**kwargs)
         if register:
-            GENERATORS[cls.name] = cls
+            REGISTRY.entries[cls.name] = cls
 
     @classmethod
     def resolve(cls, knobs: Any, base_dir: Path) -> dict[str, Any]:
@@ -78,18 +87,15 @@ def child_seed(seed: np.random.SeedSequence, *keys: int) -> np.random.SeedSequen
 
 
 def discover() -> dict[str, type[Generator]]:
-    """Every generator: the modules of ``sim.generators`` register their classes on import."""
-    package = importlib.import_module("sim.generators")
-    for module in pkgutil.iter_modules(package.__path__):
-        importlib.import_module(f"sim.generators.{module.name}")
-    return GENERATORS
+    """Every generator: the modules of ``sim.generators`` register their classes on import, and
+    so do other packages' entry points of the group ``sim.generators``."""
+    return REGISTRY.discover()
 
 
 def get_generator(name: str, where: str = "generator") -> type[Generator]:
-    """The generator class registered under ``name``."""
-    discover()
-    if name not in GENERATORS:
-        raise InputError(
-            f"{where}: unknown generator {name!r} (known: {', '.join(sorted(GENERATORS))})"
-        )
-    return GENERATORS[name]
+    """The generator class registered under ``name``; an unknown one names ``where`` it was
+    asked for (a family file)."""
+    try:
+        return REGISTRY.get(name)
+    except InputError as error:
+        raise InputError(f"{where}: {error}") from None

@@ -11,17 +11,21 @@ shared options (``sim.cli``), the experiment's configuration and execution, one 
 from __future__ import annotations
 
 import argparse
-import importlib
-import pkgutil
 import sys
 from pathlib import Path
 from typing import Any
 
-from c2inet.errors import InputError, did_you_mean
+from c2inet.registry import Registry
 from sim.experiment import Execution, ExperimentConfig
 from sim.experiment.outputs import write_report
 
-STUDIES: dict[str, Study] = {}
+
+def _is_study(entry: Any) -> str | None:
+    return None if isinstance(entry, Study) else f"{entry!r} is not a sim.studies.base.Study"
+
+
+REGISTRY: Registry[Study] = Registry("study", "sim.studies", "sim.studies", _is_study)
+STUDIES = REGISTRY.entries  # name -> study
 
 
 class Study:
@@ -85,23 +89,17 @@ class Study:
 
 def register(study: Study) -> Study:
     """Add ``study`` to the registry under its name; a name given twice is an error."""
-    if not study.name or study.name in STUDIES:
+    if not study.name or study.name in REGISTRY.entries:
         raise ValueError(f"study name {study.name!r} is empty or registered twice")
-    STUDIES[study.name] = study
-    return study
+    return REGISTRY.add(study.name, study)
 
 
 def discover() -> dict[str, Study]:
-    """Every registered study, after importing every module of ``sim.studies``."""
-    package = importlib.import_module("sim.studies")
-    for module in pkgutil.iter_modules(package.__path__):
-        importlib.import_module(f"sim.studies.{module.name}")
-    return dict(sorted(STUDIES.items()))
+    """Every study: the modules of ``sim.studies`` register theirs on import, and so do other
+    packages' entry points of the group ``sim.studies`` (each a :class:`Study` instance)."""
+    return dict(sorted(REGISTRY.discover().items()))
 
 
 def get_study(name: str) -> Study:
-    studies = discover()
-    if name not in studies:
-        known = ", ".join(studies)
-        raise InputError(f"study {name!r}: unknown{did_you_mean(name, studies)} (known: {known})")
-    return studies[name]
+    """The study called ``name`` (an :class:`~c2inet.registry.UnknownName` otherwise)."""
+    return REGISTRY.get(name)

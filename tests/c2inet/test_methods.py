@@ -5,6 +5,7 @@ The broken methods here override ``before_backward`` and one more hook left unna
 Example: ``pytest tests/c2inet/test_methods.py``
 """
 
+import importlib.metadata
 import random
 from importlib.metadata import EntryPoint
 
@@ -128,7 +129,17 @@ def test_the_checker_catches_a_trainer_that_leaks_later_tasks(monkeypatch):
         check_method(METHODS["joint"])
 
 
-def test_a_method_of_another_package_joins_through_its_entry_point(monkeypatch, capsys):
+@pytest.fixture
+def methods_registry():
+    """The method registry restored after the test: the plugins it adds leave with it."""
+    with base.REGISTRY.isolated() as registry:
+        registry.skipped.clear()
+        yield registry
+
+
+def test_a_method_of_another_package_joins_through_its_entry_point(
+    monkeypatch, capsys, methods_registry
+):
     """A user's package declares ``shrinking = "plugin_method:Shrinking"`` in the entry-point
     group ``c2inet.methods``: the registry finds it, the checker passes it; a broken entry point
     is one warning and the rest still works."""
@@ -136,9 +147,7 @@ def test_a_method_of_another_package_joins_through_its_entry_point(monkeypatch, 
         EntryPoint("shrinking", "plugin_method:Shrinking", PLUGINS),
         EntryPoint("broken", "plugin_method:Nowhere", PLUGINS),
     ]
-    monkeypatch.setattr(base.importlib.metadata, "entry_points", lambda group: entries)
-    monkeypatch.setattr(base, "METHODS", dict(base.METHODS))  # the plugin leaves with the test
-    monkeypatch.setattr(base, "SKIPPED", set())
+    monkeypatch.setattr(importlib.metadata, "entry_points", lambda group: entries)
     methods = discover()
     assert "shrinking" in methods and "broken" not in methods
     assert "method plugin 'broken' skipped" in capsys.readouterr().err
@@ -157,19 +166,19 @@ def test_a_method_of_another_package_joins_through_its_entry_point(monkeypatch, 
     ],
 )
 def test_a_plugin_cannot_take_a_built_ins_name_or_a_name_that_is_a_path(
-    monkeypatch, capsys, entry, why
+    monkeypatch, capsys, entry, why, methods_registry
 ):
     monkeypatch.setattr(
-        base.importlib.metadata, "entry_points", lambda group: [EntryPoint("odd", entry, PLUGINS)]
+        importlib.metadata, "entry_points", lambda group: [EntryPoint("odd", entry, PLUGINS)]
     )
-    monkeypatch.setattr(base, "METHODS", dict(base.METHODS))
-    monkeypatch.setattr(base, "SKIPPED", set())
     methods = discover()
     assert methods["finetune"] is Finetune and "../../escaped" not in methods
     assert why in capsys.readouterr().err
 
 
-def test_a_plugin_that_exits_at_import_or_has_no_docstring_ends_no_command(monkeypatch, capsys):
+def test_a_plugin_that_exits_at_import_or_has_no_docstring_ends_no_command(
+    monkeypatch, capsys, methods_registry
+):
     from sim.cli import listing
 
     entries = [
@@ -183,8 +192,6 @@ def test_a_plugin_that_exits_at_import_or_has_no_docstring_ends_no_command(monke
         return loaded() if entry.name == "exits" else loaded
 
     monkeypatch.setattr(EntryPoint, "load", load)
-    monkeypatch.setattr(base.importlib.metadata, "entry_points", lambda group: entries)
-    monkeypatch.setattr(base, "METHODS", dict(base.METHODS))
-    monkeypatch.setattr(base, "SKIPPED", set())
+    monkeypatch.setattr(importlib.metadata, "entry_points", lambda group: entries)
     assert "undocumented     (no description)" in listing(["methods"], [])
     assert "method plugin 'exits' skipped: it exited (3)" in capsys.readouterr().err

@@ -172,7 +172,7 @@ def test_overwrite_removes_only_a_folder_that_is_provably_a_run_of_ours(tmp_path
     run = tmp_path / "run"
     claim(run, config, Execution())
     (run / "metrics.json").write_text("{}")
-    (run / ".report.md.abcd_123").write_text("")  # a temporary file of an interrupted write
+    (run / ".report.md.abcd_123.c2i-tmp").write_text("")  # a temporary file of an interrupted write
     (run / "jobs" / "cv" / "seed_0").mkdir(parents=True)
     (run / "notes.txt").write_text("mine")
     with pytest.raises(InputError, match="holds notes.txt, which no run writes"):
@@ -295,7 +295,7 @@ def test_the_experiment_is_a_function(tmp_path):
 @pytest.mark.parametrize(
     ("options", "message"),
     [
-        ({"methods": ("sgd",)}, "unknown method"),
+        ({"methods": ("sgd",)}, "method 'sgd': unknown"),
         ({"methods": ()}, "no method"),
         ({"settings": {"ewc": {"strength": 1}}}, "not data, model, train"),
         ({"scenario": "crowd_noise_1..0"}, "reversed"),

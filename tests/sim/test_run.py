@@ -170,7 +170,7 @@ def test_seeds_give_mean_and_std(tmp_path, capsys):
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--scenario", "crowd_noise_0.1", "--methods", "sgd"], "unknown method"),
+        (["--scenario", "crowd_noise_0.1", "--methods", "sgd"], "method 'sgd': unknown"),
         (["--scenario", "crowd_noise_0.1", "--backbone", "resnet"], "invalid choice"),
         (["--scenario", "crowd_noise_0.1", "--seeds", "0"], "--seeds"),
         (["--scenario", "crowd_noise_0.1", "--k", "0"], "--k"),
@@ -265,7 +265,7 @@ def test_list_shows_families_methods_and_knobs(capsys):
         (["--scenario", "crowd_noise_0.1", "--set", "train.lrr=1"], "did you mean 'lr'?"),
         (["--scenario", "crowd_noise_0.1", "--logger", "tensorbord"], "did you mean"),
         (["--list", "knobs", "crowd_nois"], "did you mean 'crowd_noise'?"),
-        (["--list", "everything"], "expected families, methods, or knobs FAMILY"),
+        (["--list", "everything"], "expected families, methods, backbones, generators, studies"),
         ([], "required: --scenario"),
     ],
 )

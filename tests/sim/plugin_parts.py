@@ -1,0 +1,28 @@
+"""Extension points from outside the package, as a user's own package would ship them through
+entry points (``tests/sim/test_registry.py``): a generator that breaks its contract, a study,
+and objects that are not what their group wants."""
+
+import numpy as np
+
+from sim.generators.crowd import CrowdGenerator
+from sim.studies.base import Study
+
+
+class SeedlessCrowd(CrowdGenerator, register=False):
+    """Crowds that ignore their seed: a plugin the generator checker must fail."""
+
+    name = "seedless-crowd"
+
+    def generate(self, name, family, knobs, splits, seed, workers=1):
+        return super().generate(name, family, knobs, splits, np.random.SeedSequence(7), workers)
+
+
+class Echo(Study):
+    """A study of another package."""
+
+    name = "echo"
+    title = "a study from a plugin"
+
+
+ECHO = Echo()
+NOT_A_STUDY = object()
