@@ -62,7 +62,6 @@ MARKER = ".c2i-run"  # written first into every run folder: the proof that the f
 LOCK = ".c2i-run.lock"  # held (an OS file lock) by the process that runs or resumes the folder
 _LOCKS: dict[Path, int] = {}  # the folders this process holds, and the lock files' descriptors
 # the studies' NAME.json/.md/.png, and the benchmark's board
-REPORTS = ("study", "shift", "drift", "active", "fidelity", "leaderboard")
 RUN_FILES = {
     MARKER,
     LOCK,
@@ -78,7 +77,6 @@ RUN_FILES = {
     "spent.json",  # a benchmark's time
     "tuning.db",  # a tuning's Optuna studies (in its own marked folder)
     "tuning.json",
-    *(f"{name}.{ext}" for name in REPORTS for ext in ("json", "md", "png")),
 }
 RUN_FOLDERS = {"jobs", "matrices", "figures", "logs", "tensorboard", "cache", "cells"}
 MAX_CONFIG_BYTES = 1 << 20  # a run's config.json is a few kilobytes
@@ -234,9 +232,30 @@ def unlock_run(out: Path) -> None:
         os.close(fd)  # closing the descriptor releases its flock
 
 
+MARKER_TEXT = "a run folder of c2i-testbed: --overwrite may remove it"
+
+
 def mark_run(out: Path) -> None:
     """Write the run marker, before anything else of the run."""
-    write_text_atomic(out / MARKER, "a run folder of c2i-testbed: --overwrite may remove it\n")
+    write_text_atomic(out / MARKER, MARKER_TEXT + "\n")
+
+
+def record_written(out: Path, names: list[str]) -> None:
+    """Add ``names`` (files of ``out`` beyond every run's own, e.g. a study's report) to the
+    marker, before they are written: ``--overwrite`` then knows them for ours, and nothing else."""
+    written = sorted(set(marked_files(out)) | set(names))
+    text = MARKER_TEXT + "\n" + "".join(f"wrote: {name}\n" for name in written)
+    write_text_atomic(out / MARKER, text)
+
+
+def marked_files(out: Path) -> list[str]:
+    """The file names the marker of ``out`` records as written (plain names, nothing else)."""
+    try:
+        lines = (out / MARKER).read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError):
+        return []
+    names = [line.removeprefix("wrote: ") for line in lines if line.startswith("wrote: ")]
+    return [n for n in names if n and "/" not in n and n not in (".", "..")]
 
 
 def config_path(argv: list[str]) -> Path | None:
@@ -265,9 +284,10 @@ def remove_leftovers(out: Path) -> list[Path]:
 
 
 def _run_output(entry: Path) -> bool:
-    """A file or folder a run writes into its own folder."""
+    """A file or folder a run writes into its own folder (or that its marker records)."""
     if entry.is_file():
-        return entry.name in RUN_FILES or bool(TEMPORARY.match(entry.name))
+        ours = entry.name in RUN_FILES or entry.name in marked_files(entry.parent)
+        return ours or bool(TEMPORARY.match(entry.name))
     return entry.is_dir() and entry.name in RUN_FOLDERS
 
 
@@ -515,6 +535,8 @@ def write_report(out: Path, name: str, report: dict[str, Any], markdown, figure)
     """A study's three files in ``out``: ``NAME.json`` (``report``), ``NAME.md``
     (``markdown(report)``) and ``NAME.png`` (``figure(report, path)``), each written whole."""
     writable_folder(out, "--out")
+    if (out / MARKER).is_file():  # a folder of ours: its marker learns the report's names
+        record_written(out, [f"{name}.{ext}" for ext in ("json", "md", "png")])
     write_text_atomic(out / f"{name}.json", json.dumps(report, indent=1) + "\n")
     write_text_atomic(out / f"{name}.md", markdown(report))
     figure(report, out / f"{name}.png")

@@ -48,6 +48,7 @@ from sim.experiment.outputs import (
     git_commit,
     mark_run,
     tidy_rows,
+    write_report,
     write_results,
 )
 from sim.experiment.sweep import layered, plan, run_together
@@ -465,7 +466,5 @@ def run_bench(
             for column, values in tidy_rows("tuned", config, [job]).items():
                 rows[column] += values
     write_results(out / "results.parquet", rows)
-    write_text_atomic(out / "leaderboard.json", json.dumps(board, indent=1) + "\n")
-    write_text_atomic(out / "leaderboard.md", leaderboard_markdown(board))
-    leaderboard_figure(board, out / "leaderboard.png")
+    write_report(out, "leaderboard", board, leaderboard_markdown, leaderboard_figure)
     return board

@@ -503,3 +503,23 @@ def test_the_estimate_times_the_second_tasks_steps_and_every_hook():
     assert step_1 > step_0 + 0.03
     for hooks in (hooks_0, hooks_1):
         assert 10 * 0.03 + 0.04 <= hooks < 2 * (10 * 0.03 + 0.04)  # each once, not per step
+
+
+def test_a_report_is_ours_because_the_marker_records_it_not_because_of_its_name(tmp_path):
+    """No list of report names: a folder's marker records the reports its owner wrote, so
+    --overwrite removes those and refuses a user's file of the same shape."""
+    from sim.experiment.outputs import foreign_entry, mark_run, write_report
+
+    out = tmp_path / "study"
+    out.mkdir()
+    mark_run(out)
+    figure = lambda report, path: path.write_bytes(b"\x89PNG")  # noqa: E731
+    write_report(out, "echo", {"rows": []}, lambda report: "# echo\n", figure)
+    assert sorted(p.name for p in out.iterdir() if p.name != ".c2i-run") == [
+        "echo.json",
+        "echo.md",
+        "echo.png",
+    ]
+    assert foreign_entry(out) is None
+    (out / "study.md").write_text("a user's notes, named like a report")
+    assert foreign_entry(out) == out / "study.md"

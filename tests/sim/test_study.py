@@ -6,7 +6,6 @@ import json
 
 import pytest
 
-from sim.experiment.outputs import REPORTS
 from sim.studies.base import STUDIES, Study, discover, register
 from sim.studies.paper import PRESETS
 from sim.study import main, study_parser
@@ -41,7 +40,6 @@ def test_every_study_is_registered_once_with_the_shared_options():
         assert shared | {"resume", "jobs", "backend"} <= options, name
         assert ("logger" in options) == study.sweeps, name
         assert ("no_record" in options) == (study.sweeps and study.records), name
-        assert (study.report or name) in REPORTS, f"{name}: --overwrite would not know its files"
     with pytest.raises(ValueError, match="registered twice"):
         register(STUDIES["drift"])
     with pytest.raises(ValueError, match="empty"):
