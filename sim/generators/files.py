@@ -26,11 +26,9 @@ from c2inet.files import file_digest
 from c2inet.options import check_range
 from sim.data import SPLITS, Domain, Scene
 from sim.generators.base import Generator
-from sim.generators.formats import sdd_rows, trajnet_scenes
+from sim.generators.formats import MAX_CELLS, MAX_COORDINATE, sdd_rows, trajnet_scenes
 from sim.stats import motion_stats, proximity_stats
 
-MAX_COORDINATE = 1e6  # metres: beyond it a coordinate is a unit error, and statistics overflow
-MAX_CELLS = 2_000_000  # frames x agents of one dense scene (32 MB); larger ones are cut in time
 WINDOW = OBS_LEN + PRED_LEN
 CHUNK_LINES = 1 << 17  # lines parsed at a time (about 4 MB of text)
 FORMATS = ("ethucy", "sdd", "trajnetpp")
@@ -101,6 +99,12 @@ def read_trajectory_file(
     track = _tracks(path, frame, agent, line, split_gaps)
     steps = np.diff(frame)[(track[1:] == track[:-1])]
     step = float(steps.min()) if len(steps) else 1.0
+    if every > 1 and len(steps) and not np.isclose(step, every):
+        raise InputError(
+            f"{path}: every = {every} keeps frames {step:g} apart, not {every}: the file's own "
+            f"frame step does not divide {every}, and a step of {step:g} frames read as one "
+            "would multiply every speed; choose every as a multiple of the file's step"
+        )
     index = (frame - frame.min()) / step
     if not np.allclose(index, np.round(index)):
         raise InputError(f"{path}: frame ids are not on a uniform grid of step {step:g}")

@@ -20,6 +20,9 @@ import numpy as np
 from c2inet.errors import InputError, quote
 from sim.data import Scene
 
+MAX_COORDINATE = 1e6  # metres: beyond it a coordinate is a unit error, and statistics overflow
+MAX_CELLS = 2_000_000  # frames x agents of one dense scene (32 MB)
+
 SDD_COLUMNS = "track xmin ymin xmax ymax frame lost occluded generated label"
 
 
@@ -65,6 +68,7 @@ def trajnet_scenes(path: Path, scale: float = 1.0, every: int = 1) -> list[Scene
     if not records or not tracks:
         raise InputError(f"{path}: needs scene and track records (TrajNet++ ndjson)")
     rows = np.array(tracks, dtype=float)
+    _check_tracks(path, rows)
     rows = rows[rows[:, 0] % every == 0] if every > 1 else rows
     if not len(rows):
         raise InputError(f"{path}: no track rows on frames that are multiples of {every}")
@@ -73,6 +77,12 @@ def trajnet_scenes(path: Path, scale: float = 1.0, every: int = 1) -> list[Scene
     step = float(np.diff(frames).min()) if len(frames) > 1 else 1.0
     scenes = []
     for scene_id, primary, first, last, number in records:
+        cells = ((last - first) / step + 1) * len(np.unique(rows[:, 1]))
+        if cells > MAX_CELLS:  # bounded by the rows' agents before any allocation
+            raise InputError(
+                f"{path}:{number}: scene {scene_id:g} spans frames {first:g} to {last:g}: "
+                f"{(last - first) / step + 1:.3g} frames, beyond what a scene may hold"
+            )
         lo = np.searchsorted(rows[:, 0], first, side="left")
         inside = rows[lo : np.searchsorted(rows[:, 0], last, side="right")]
         index = (inside[:, 0] - first) / step
@@ -90,6 +100,18 @@ def trajnet_scenes(path: Path, scale: float = 1.0, every: int = 1) -> list[Scene
     return scenes
 
 
+def _check_tracks(path: Path, rows: np.ndarray) -> None:
+    """Track rows as every reader checks them: integer frame and agent ids, coordinates within
+    MAX_COORDINATE metres, one row per agent and frame."""
+    if (rows[:, :2] != np.round(rows[:, :2])).any():
+        raise InputError(f"{path}: a track's frame or agent id is not an integer")
+    if (np.abs(rows[:, 2:4]) > MAX_COORDINATE).any():
+        raise InputError(f"{path}: a coordinate beyond {MAX_COORDINATE:g} m")
+    keys = rows[:, :2]
+    if len(np.unique(keys, axis=0)) < len(keys):
+        raise InputError(f"{path}: an agent has two track rows at one frame")
+
+
 def _record(path: Path, number: int, line: str, records: list, tracks: list) -> None:
     """Append one ndjson line's scene or track record, or raise naming the line."""
     where = f"{path}:{number}"
@@ -103,9 +125,12 @@ def _record(path: Path, number: int, line: str, records: list, tracks: list) -> 
             tracks.append(row)
         elif "scene" in record:
             s = record["scene"]
-            records.append((*(float(s[key]) for key in ("id", "p", "s", "e")), number))
-            if records[-1][3] < records[-1][2]:
+            scene = tuple(float(s[key]) for key in ("id", "p", "s", "e"))
+            if not np.isfinite(scene).all() or scene != tuple(np.round(scene)):
+                raise InputError(f"{where}: a scene's id, p, s and e must be finite integers")
+            if scene[3] < scene[2]:
                 raise InputError(f"{where}: scene ends (e) before it starts (s)")
+            records.append((*scene, number))
         else:
             raise InputError(f"{where}: expected a 'scene' or a 'track' record")
     except InputError:
@@ -114,5 +139,5 @@ def _record(path: Path, number: int, line: str, records: list, tracks: list) -> 
         raise InputError(f"{where}: not a JSON line ({error.msg})") from None
     except KeyError as error:
         raise InputError(f"{where}: record lacks the field {error}") from None
-    except (TypeError, ValueError, AttributeError):
+    except (TypeError, ValueError, AttributeError, OverflowError):
         raise InputError(f"{where}: malformed record {quote(line.strip())}") from None

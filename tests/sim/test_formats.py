@@ -125,6 +125,13 @@ def test_trajnetpp_family_windows_every_scene(tmp_path):
         ('{"person": {}}', ":3: expected a 'scene' or a 'track' record"),
         ('{"scene": {"id": 4, "p": 9, "s": 0, "e": 10}}', ":3: scene 4 lacks its agent 9"),
         ('{"track": {"f": 0, "p": 1, "x": NaN, "y": 0}}', ":3: non-finite value"),
+        ('{"scene": {"id": 5, "p": 1, "s": 0, "e": 100000000}}', ":3: scene 5 spans frames 0"),
+        ('{"scene": {"id": 5, "p": 1, "s": 0, "e": Infinity}}', ":3: .* must be finite integers"),
+        ('{"scene": {"id": 5, "p": 1, "s": 0, "e": NaN}}', ":3: .* must be finite integers"),
+        ('{"scene": {"id": 5, "p": 1, "s": 0, "e": 1' + "0" * 309 + "}}", ":3: malformed record"),
+        ('{"track": {"f": 5, "p": 1, "x": 1e7, "y": 0}}', "a coordinate beyond 1e\\+06 m"),
+        ('{"track": {"f": 0, "p": 1, "x": 2, "y": 0}}', "two track rows at one frame"),
+        ('{"track": {"f": 5, "p": 1.5, "x": 2, "y": 0}}', "id is not an integer"),
     ],
 )
 def test_broken_trajnetpp_lines_are_named(tmp_path, line, message):
@@ -196,3 +203,13 @@ def test_a_pixel_familys_run_reports_pixels_and_a_mix_of_units_is_refused(tmp_pa
     assert json.loads((out / "metrics.json").read_text())["unit"] == "px"
     with pytest.raises(InputError, match="mixes families in m and px"):
         ExperimentConfig("sdd_bookstore+crowd_noise_0.1", ("cv",), scenarios_dir=(tmp_path,))
+
+
+def test_every_that_the_files_frame_step_does_not_divide_is_refused(tmp_path):
+    """A file stepping 5 frames with every = 12 keeps frames 60 apart; read as 12 they would
+    make every speed five times too high."""
+    path = tmp_path / "five.txt"
+    path.write_text("".join(f"{5 * t} 1 {0.1 * t} 0\n" for t in range(200)))
+    with pytest.raises(InputError, match="every = 12 keeps frames 60 apart"):
+        read_trajectory_file(path, every=12)
+    assert len(read_trajectory_file(path, every=10)) == 1  # a multiple of 5: kept as it is
