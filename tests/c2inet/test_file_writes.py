@@ -43,3 +43,21 @@ def test_an_atomic_write_replaces_the_file_whole(tmp_path):
     write_text_atomic(target, "one")
     write_text_atomic(target, "two")
     assert target.read_text() == "two" and list(tmp_path.iterdir()) == [target]
+
+
+@pytest.mark.parametrize("step", ["mkdir", "mkstemp"])
+def test_a_file_system_out_of_inodes_fails_the_folder_or_the_temporary_in_one_error(
+    tmp_path, monkeypatch, step
+):
+    """With bytes free but no inode left, making the folder or the temporary file fails with
+    ENOSPC before anything is written: one named error, no traceback."""
+
+    def no_inode(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    if step == "mkdir":
+        monkeypatch.setattr(files.Path, "mkdir", no_inode)
+    else:
+        monkeypatch.setattr(files.tempfile, "mkstemp", no_inode)
+    with pytest.raises(CannotWrite, match="no space left on its device"):
+        write_text_atomic(tmp_path / "sub" / "result.json", "{}")
