@@ -66,6 +66,7 @@ class Family:
     splits: Splits = Splits()
     values: dict[str, dict[str, Any]] = field(default_factory=dict)
     unit: str = "m"  # of the positions: metres, or pixels (a recording not yet scaled)
+    stride: int = 1  # frames between the starts of two training windows of a scene
 
     @property
     def value_names(self) -> tuple[str, ...]:
@@ -111,7 +112,7 @@ def available_families(extra_dirs: list[Path]) -> dict[str, Path]:
 MAX_FAMILY_BYTES = 1_000_000
 VALUE_NAME = r"[a-z0-9][a-z0-9_-]*(\.[a-z0-9_-]+)*"  # e.g. "univ", "0.1": safe in file names
 _FAMILY_KEYS = {"description", "generator", "knob", "seed_offset", "knobs", "splits", "values"}
-_FAMILY_KEYS |= {"unit"}
+_FAMILY_KEYS |= {"unit", "windows"}
 UNITS = {"m": "metres", "px": "pixels"}  # what a family's positions are in
 
 
@@ -121,6 +122,17 @@ def toml_table(raw: dict, key: str, path: Path) -> dict:
     if not isinstance(value, dict):
         raise InputError(f"{path}: {key!r} must be a table")
     return value
+
+
+def window_stride(table: dict[str, Any], where: str) -> int:
+    """The ``[windows]`` table's training-window stride (1 to 100 frames; 1 when absent)."""
+    unknown = sorted(set(table) - {"stride"})
+    if unknown:
+        raise InputError(f"{where}: [windows] {unknown[0]!r}: only 'stride' is known")
+    stride = table.get("stride", 1)
+    if isinstance(stride, bool) or not isinstance(stride, int) or not 1 <= stride <= 100:
+        raise InputError(f"{where}: windows.stride={stride!r}: expected an integer in [1, 100]")
+    return stride
 
 
 def load_family(path: Path) -> Family:
@@ -157,6 +169,7 @@ def load_family(path: Path) -> Family:
     for name, table in values.items():
         if not re.fullmatch(VALUE_NAME, name) or not isinstance(table, dict):
             raise InputError(f"{path}: bad value table {name!r}")
+    stride = window_stride(toml_table(raw, "windows", path), str(path))
     unit = raw.get("unit", "m")
     if unit not in UNITS:
         raise InputError(f"{path}: unit {unit!r}: expected one of {', '.join(UNITS)}")
@@ -174,6 +187,7 @@ def load_family(path: Path) -> Family:
         splits=build(Splits, toml_table(raw, "splits", path), f"{path} [splits]"),
         values=values,
         unit=unit,
+        stride=stride,
     )
     if not values:  # the defaults alone must already be a valid knob set
         build(generator.Knobs, defaults, f"{path} [knobs]")

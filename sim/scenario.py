@@ -15,7 +15,7 @@ from typing import Any
 
 from c2inet.errors import InputError, did_you_mean, quote
 from c2inet.options import build
-from sim.families import Family, Splits, available_families, load_family
+from sim.families import Family, Splits, available_families, load_family, window_stride
 
 MAX_DOMAINS = 64
 MAX_LABEL = 32  # characters of a value as written in a domain name
@@ -118,18 +118,24 @@ def _split_family(part: str, families: dict[str, Path]) -> tuple[str, str]:
 
 
 def with_overrides(family: Family, overrides: dict[str, Any]) -> Family:
-    """``family`` with knob defaults and split sizes replaced (``splits.NAME`` keys)."""
+    """``family`` with knob defaults, split sizes (``splits.NAME`` keys) and the training-window
+    stride (``windows.stride``) replaced."""
     if not overrides:
         return family
-    splits = {k.removeprefix("splits."): v for k, v in overrides.items() if k.startswith("splits.")}
-    knobs = {k: v for k, v in overrides.items() if not k.startswith("splits.")}
+
+    def scoped(prefix: str) -> dict[str, Any]:
+        return {k.removeprefix(prefix): v for k, v in overrides.items() if k.startswith(prefix)}
+
+    splits, windows = scoped("splits."), scoped("windows.")
+    knobs = {k: v for k, v in overrides.items() if not k.startswith(("splits.", "windows."))}
     if family.knob in knobs:
         raise InputError(f"--set data.{family.knob}: that knob is what {family.name}'s values set")
     unknown = sorted(set(splits) - {"train", "val", "test"})
     if unknown:
         raise InputError(f"--set data.splits.{unknown[0]}: expected splits.train, .val or .test")
     sizes = build(Splits, {**vars(family.splits), **splits}, "--set data.splits")
-    return replace(family, defaults={**family.defaults, **knobs}, splits=sizes)
+    stride = window_stride({"stride": family.stride, **windows}, "--set data")
+    return replace(family, defaults={**family.defaults, **knobs}, splits=sizes, stride=stride)
 
 
 def parse_scenario(

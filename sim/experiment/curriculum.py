@@ -78,8 +78,8 @@ def make_tasks(
         quick_splits = Splits(*get_generator(spec.family.generator).quick_splits) if quick else None
         domain = build_domain(spec, seed, cache, quick_splits, workers, memory_budget)
         splits = {}
-        for split in SPLITS:
-            windows = domain.windows(split)
+        for split in SPLITS:  # training windows every family.stride frames, the others all
+            windows = domain.windows(split, spec.family.stride if split == "train" else 1)
             if windows is not None and quick and len(windows) > QUICK_WINDOWS:
                 windows = windows.subset(np.arange(QUICK_WINDOWS))
             splits[split] = windows

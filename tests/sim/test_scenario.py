@@ -190,3 +190,20 @@ def test_split_size_overrides_go_through_the_option_builder(value, message):
     """Found by benchmarks/fuzz.py: 1e400 crashed int(), and 1.5 was cut to 1."""
     with pytest.raises(InputError, match=message):
         parse_scenario("crowd_noise_0.1", overrides={"splits.train": value})
+
+
+def test_a_training_window_stride_thins_training_windows_only(tmp_path):
+    """``--set data.windows.stride=5`` (or a family's ``[windows] stride``): a recording's
+    training windows start every fifth frame; validation and test keep every window."""
+    from sim.experiment.curriculum import learner_tasks
+
+    (every,) = learner_tasks("eth_ucy_eth", cache=tmp_path)
+    (thinned,) = learner_tasks("eth_ucy_eth", data={"windows.stride": 5}, cache=tmp_path)
+    assert len(thinned.train) < len(every.train) / 3
+    assert len(thinned.test) == len(every.test)
+    text = (SCENARIOS_DIR / "crowd_noise.toml").read_text()
+    (tmp_path / "strided.toml").write_text(
+        text.replace("[knobs]", "[windows]\nstride = 5\n\n[knobs]")
+    )
+    (spec,) = parse_scenario("strided_0.1", [tmp_path])
+    assert spec.family.stride == 5
