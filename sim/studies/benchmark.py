@@ -113,6 +113,7 @@ PRESETS = {
         "eth_ucy_univ,eth,zara1,zara2,hotel",
         "the ETH-UCY stream, one scene a task; tuned on the last fifth of each scene's training "
         "file (no other real recording ships; the evaluated _val files are never read)",
+        {"windows.stride": 5},  # 2,650 overlapping training windows a pass, univ's of 28 agents
     ),
     "traffic": Preset(
         "highway_density_0.5..2.0:0.5",
