@@ -17,17 +17,7 @@ from pathlib import Path
 from c2inet.errors import InputError, did_you_mean
 from sim.cli import add_experiment_options, execution_of, experiment_options, interrupted, parse
 from sim.cli import parser as command_parser
-from sim.experiment import ExperimentConfig
-from sim.studies.benchmark import (
-    PRESETS,
-    REFERENCE_SEEDS,
-    REPLAY_BUDGET,
-    SEEDS,
-    TRIALS,
-    BenchConfig,
-    run_bench,
-)
-from sim.studies.leaderboard import leaderboard_markdown
+from sim.studies.presets import PRESETS, REFERENCE_SEEDS, REPLAY_BUDGET, SEEDS, TRIALS
 from viz.cli import bounded_float, bounded_int, guarded
 
 
@@ -117,6 +107,10 @@ def main(argv: list[str] | None = None) -> int:
     data = PRESETS[args.preset].data if args.preset else {}
     name = args.preset or "custom"
     out = args.out or Path("bench") / name
+    from sim.experiment import ExperimentConfig  # the engine loads once there is work
+    from sim.studies.benchmark import BenchConfig, run_bench
+    from sim.studies.leaderboard import leaderboard_markdown
+
     base = ExperimentConfig(args.scenario, **experiment_options(args))
     bench = BenchConfig(
         base,

@@ -9,17 +9,17 @@ import os
 import sys
 import tomllib
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from c2inet.backbones import BACKBONES
 from c2inet.errors import InputError, did_you_mean, one_line
-from c2inet.methods.base import discover
 from sim.experiment.backends import BACKENDS
-from sim.experiment.config import DEFAULT_METHODS, Execution, parse_settings
-from sim.experiment.outputs import config_path
+from sim.experiment.defaults import DEFAULT_METHODS
 from sim.families import available_families, load_family
 from sim.generators import get_generator
-from viz.cli import bounded_float, bounded_int, plain_parser
+from viz.cli import bounded_float, bounded_int, config_path, plain_parser
+
+if TYPE_CHECKING:
+    from sim.experiment.config import Execution
 
 SCENARIO_HELP = """scenarios: FAMILY_VALUES, parts joined by '+'; VALUES is a..b (step from the
 decimals of a), a..b:step, or v1,v2,... (names for real-data families), e.g.
@@ -289,7 +289,9 @@ def add_experiment_options(
     p.add_argument(
         "--methods", default=methods, help=f"comma-separated, or all (default {methods})"
     )
-    p.add_argument("--backbone", choices=sorted(BACKBONES), default="stgat")
+    p.add_argument(
+        "--backbone", default="stgat", help="stgat (default), stgcnn, or another registered one"
+    )
     p.add_argument(
         "--epochs", type=bounded_int(0, 10_000), help="epochs per task (default 20, quick 2)"
     )
@@ -344,6 +346,8 @@ def experiment_options(args: argparse.Namespace, grid: bool = False) -> dict:
     (``grid``: ``--set`` is a sweep's grid, not the configuration's settings). Settings of a
     ``--config`` file come first; ``--set`` overrides them key by key."""
     settings = {scope: dict(values) for scope, values in args.config_settings.items()}
+    from sim.experiment.config import parse_settings  # the learner's options: loaded for work
+
     for scope, values in ({} if grid else parse_settings(args.set)).items():
         settings.setdefault(scope, {}).update(values)
     return {
@@ -364,6 +368,8 @@ def experiment_options(args: argparse.Namespace, grid: bool = False) -> dict:
 def method_names(text: str) -> tuple[str, ...]:
     """``--methods``: comma-separated names, or ``all`` for every registered method."""
     if text.strip() == "all":
+        from c2inet.methods.base import discover
+
         return tuple(sorted(discover()))
     return tuple(name.strip() for name in text.split(",") if name.strip())
 
@@ -383,6 +389,8 @@ def execution_of(args: argparse.Namespace) -> Execution:
     )
     options = {name: getattr(args, name) for name in names if hasattr(args, name)}
     loggers = getattr(args, "logger", "")
+    from sim.experiment.config import Execution
+
     return Execution(**options, loggers=tuple(n.strip() for n in loggers.split(",") if n.strip()))
 
 

@@ -14,9 +14,6 @@ from c2inet.errors import InputError
 from c2inet.files import file_digest, writable_folder, write_text_atomic
 from sim.cli import add_workers, parse, parser
 from sim.data import SPLITS, Domain
-from sim.domains import build_domain
-from sim.experiment.config import parse_settings
-from sim.io import write_ethucy, write_npz, write_parquet
 from sim.progress import progress_bar
 from sim.scenario import parse_scenario
 from viz.cli import guarded
@@ -44,11 +41,14 @@ def format_table(domains: list[Domain], knob_names: list[str]) -> str:
     )
 
 
-WRITERS = {
-    "parquet": lambda d, out: write_parquet(d, out / f"{d.name}.parquet"),
-    "ethucy": lambda d, out: write_ethucy(d, out / d.name),
-    "npz": lambda d, out: write_npz(d, out / d.name),
-}
+WRITERS = ("ethucy", "npz", "parquet")  # the formats, each by sim.io's write_FORMAT
+
+
+def write_domain(format: str, domain: Domain, out: Path) -> None:
+    """``domain`` in ``format`` where :data:`WRITTEN` says (pyarrow loads only to write)."""
+    from sim import io
+
+    getattr(io, f"write_{format}")(domain, WRITTEN[format](out, domain.name))
 
 
 WRITTEN = {  # what each writer leaves for a domain: a file or a folder of its own
@@ -108,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     p = parser("sim.generate", __doc__.splitlines()[0], examples)
     p.add_argument("--out", type=Path, help="output folder (required)")
-    p.add_argument("--format", choices=sorted(WRITERS), default="parquet")
+    p.add_argument("--format", choices=WRITERS, default="parquet")
     p.add_argument(
         "--set", action="append", default=[], metavar="data.KNOB=VALUE", help="override a knob"
     )
@@ -121,6 +121,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.out is None:
         p.error("the following arguments are required: --out")
+    from sim.domains import build_domain  # the simulators load once there is work
+    from sim.experiment.config import parse_settings
+
     settings = parse_settings(args.set)
     for scope in set(settings) - {"data"}:
         raise InputError(f"--set {scope}.*: generate takes only data.KNOB=VALUE")
@@ -132,7 +135,7 @@ def main(argv: list[str] | None = None) -> int:
         domain = build_domain(
             spec, args.seed, workers=args.workers, memory_budget=args.memory_budget
         )
-        WRITERS[args.format](domain, args.out)
+        write_domain(args.format, domain, args.out)
         record_written(args.out, [WRITTEN[args.format](args.out, domain.name)], written)
         domains.append(domain)
     summary = {

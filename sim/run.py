@@ -12,7 +12,6 @@ import sys
 import time
 from pathlib import Path
 
-from c2inet.report import caption, text_table
 from sim.cli import (
     INTERRUPTED,
     add_experiment_options,
@@ -22,8 +21,6 @@ from sim.cli import (
     parser,
     resolved_config,
 )
-from sim.experiment import ExperimentConfig, run_experiment
-from sim.experiment.outputs import output_folder
 from viz.cli import guarded
 from viz.serve import how_to_open
 
@@ -56,6 +53,11 @@ def main(argv: list[str] | None = None) -> int:
     args = parse(p, argv)
     if args is None:
         return 0
+    # the learner and the engine load once there is work: --help and a typo answer at once
+    from c2inet.report import caption, text_table
+    from sim.experiment import ExperimentConfig, run_experiment
+    from sim.experiment.outputs import output_folder
+
     config = ExperimentConfig(args.scenario, **experiment_options(args))
     execution = execution_of(args)
     if args.print_config:

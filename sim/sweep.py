@@ -20,8 +20,6 @@ from sim.cli import (
     parse,
     parser,
 )
-from sim.experiment import ExperimentConfig
-from sim.experiment.sweep import SweepConfig, combined_report, parse_grid, run_sweep
 from viz.cli import guarded
 
 
@@ -41,6 +39,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.out is None:
         p.error("the following arguments are required: --out")
+    from sim.experiment import ExperimentConfig  # the engine loads once there is work
+    from sim.experiment.sweep import SweepConfig, combined_report, parse_grid, run_sweep
+
     base = ExperimentConfig(args.scenario[0], **experiment_options(args, grid=True))
     sweep = SweepConfig(base, tuple(args.scenario), parse_grid(args.set))
     try:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 from c2inet.errors import CannotWrite, InputError, WorkerDied, one_line
@@ -63,3 +64,10 @@ def guarded(main: Callable[[list[str] | None], int]) -> Callable[[list[str] | No
             return 1
 
     return run
+
+
+def config_path(argv: list[str]) -> Path | None:
+    """The ``--config FILE`` of a command line, read as the command's own parser reads it."""
+    early = argparse.ArgumentParser(add_help=False)
+    early.add_argument("--config", type=Path)
+    return early.parse_known_args(argv)[0].config

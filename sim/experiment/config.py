@@ -22,11 +22,11 @@ from c2inet.model import ModelConfig
 from c2inet.options import build
 from c2inet.trainer import TrainConfig
 from sim.experiment.backends import BACKENDS, check_ray_address
+from sim.experiment.defaults import DEFAULT_METHODS
 from sim.scenario import DomainSpec, parse_scenario
 from viz.live import viewer_url
 from viz.loggers import LOGGERS, WANDB_MODES
 
-DEFAULT_METHODS = ("c2inet-online", "finetune", "cv")
 SHARED_SCOPES = ("data", "model", "train")  # settings scopes besides the methods' own
 # options that have a flag of their own: a --set of them would be silently overridden
 FLAG_OPTIONS = (

@@ -11,7 +11,6 @@ the point prediction's ``ade_k1``/``fde_k1``, one random draw's ``ade_draw``/``f
 
 from __future__ import annotations
 
-import argparse
 import fcntl
 import hashlib
 import itertools
@@ -49,6 +48,7 @@ from c2inet.report import (
     summarise_diagnostics,
 )
 from sim.data import SPLITS
+from viz.cli import config_path
 from viz.recording import merge_recordings
 
 if TYPE_CHECKING:
@@ -256,13 +256,6 @@ def marked_files(out: Path) -> list[str]:
         return []
     names = [line.removeprefix("wrote: ") for line in lines if line.startswith("wrote: ")]
     return [n for n in names if n and "/" not in n and n not in (".", "..")]
-
-
-def config_path(argv: list[str]) -> Path | None:
-    """The ``--config FILE`` of a command line, read as the command's own parser reads it."""
-    early = argparse.ArgumentParser(add_help=False)
-    early.add_argument("--config", type=Path)
-    return early.parse_known_args(argv)[0].config
 
 
 def config_file(argv: list[str]) -> dict[str, str] | None:

@@ -529,3 +529,22 @@ def test_a_run_prints_its_estimate_first_and_a_quick_run_does_not(tmp_path, caps
     assert full.returncode == quick.returncode == 0
     assert "1 jobs x 1 tasks, 1 at a time: about" in full.stderr
     assert "(timed on this machine)" not in quick.stderr
+
+
+@pytest.mark.parametrize("command", ["sim.run", "sim.bench", "sim.sweep", "sim.generate"])
+@pytest.mark.parametrize("argv", [["--help"], ["--epochs", "x"]])
+def test_help_and_a_bad_argument_answer_without_loading_the_learner(command, argv):
+    """torch, pandas, pyarrow and rerun load once a command has work: --help and a typo cost
+    a fraction of a second, not the 2 to 3 CPU seconds of those imports."""
+    probe = (
+        "import runpy, sys\n"
+        f"sys.argv = [{command!r}, *{argv!r}]\n"
+        "try:\n"
+        f"    runpy.run_module({command!r}, run_name='__main__')\n"
+        "except SystemExit:\n"
+        "    pass\n"
+        "heavy = [m for m in ('torch', 'pandas', 'pyarrow', 'rerun') if m in sys.modules]\n"
+        "print('LOADED', heavy, file=sys.__stdout__)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True)
+    assert "LOADED []" in done.stdout, done.stdout + done.stderr

@@ -1,0 +1,61 @@
+"""The fair benchmark's protocol sizes and presets: plain data, so ``python -m sim.bench --help``
+lists them without loading the learner (``sim/studies/benchmark.py`` runs them)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+BATCH = 16  # scenes a step: the protocol's (batch 64 at 20 epochs under-trained, docs/benchmark.md)
+SEEDS = 8  # evaluation seeds of every ranked method
+TRIALS = 10  # tuning trials of every method
+REFERENCE_SEEDS = 3  # seeds of each reference
+REPLAY_BUDGET = 200  # scenes every replay method keeps in all
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A benchmark's curriculum, the separate curriculum its methods are tuned on (at least three
+    tasks, no value of the evaluated one, or where no other data exists, held-out training scenes
+    of the same recordings), what it stands for, and the data sizes that fit it in an hour
+    (``--set data.KEY=VALUE`` overrides, e.g. fewer training scenes where each holds many agents;
+    the user's own ``--set data.*`` wins)."""
+
+    scenario: str
+    tune_scenario: str
+    description: str
+    data: dict[str, Any] = field(default_factory=dict)
+
+
+PRESETS = {
+    "radius": Preset(
+        "crowd_radius_0.1..0.6",
+        "crowd_radius_0.15..0.55:0.2",
+        "the paper's Table 2 on the ORCA-steered crowd_radius; tuned on radii between its own",
+        {"splits.train": 200},
+    ),
+    "density": Preset(
+        "crowd_density_0.05..0.30:0.05",
+        "crowd_density_0.075..0.275:0.1",
+        "crowd density, where the domain is visible in the past; tuned on densities between",
+        {"splits.train": 60},
+    ),
+    "noise": Preset(
+        "crowd_noise_0.1..0.6",
+        "crowd_noise_0.15..0.55:0.2",
+        "behavioural noise of Pymunk crowds; tuned on noise levels between its own",
+        {"splits.train": 60},
+    ),
+    "eth-ucy": Preset(
+        "eth_ucy_univ,eth,zara1,zara2,hotel",
+        "eth_ucy_univ,eth,zara1,zara2,hotel",
+        "the ETH-UCY stream, one scene a task; tuned on the last fifth of each scene's training "
+        "file (no other real recording ships; the evaluated _val files are never read)",
+        {"windows.stride": 5},  # 2,650 overlapping training windows a pass, univ's of 28 agents
+    ),
+    "traffic": Preset(
+        "highway_density_0.5..2.0:0.5",
+        "highway_density_0.75..1.75:0.5",
+        "highway-env traffic density; tuned on densities between its own",
+    ),
+}
