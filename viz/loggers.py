@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from c2inet.errors import InputError
+from c2inet.errors import InputError, one_line
 
 # mlflow=URI: a tracking server, not the run's own store; wandb=online: W&B's server, not offline
 LOGGERS = ("csv", "tensorboard", "mlflow", "wandb")
@@ -128,6 +128,14 @@ class TensorBoardLogger:
         self.writer.close()
 
 
+# MLflow's HTTP client waits minutes for a server by default (7 retries, 120 s timeouts)
+MLFLOW_PATIENCE = {
+    "MLFLOW_HTTP_REQUEST_MAX_RETRIES": "1",
+    "MLFLOW_HTTP_REQUEST_BACKOFF_FACTOR": "1",
+    "MLFLOW_HTTP_REQUEST_TIMEOUT": "10",
+}
+
+
 class MLflowLogger:
     """An MLflow run per job, in the run's own store ``mlflow.db`` (SQLite; ``mlflow ui
     --backend-store-uri sqlite:///RUN/mlflow.db``) or on the server of ``mlflow=URI``: the
@@ -162,10 +170,20 @@ class MLflowLogger:
                 "--logger mlflow: MLflow is not installed (pip install '.[mlflow]')"
             ) from None
         logging.getLogger("mlflow").setLevel(logging.WARNING)  # its schema notices
-        client = MlflowClient(uri or f"sqlite:///{run_folder / 'mlflow.db'}")
+        for key, value in MLFLOW_PATIENCE.items():  # a bounded wait for a server, not minutes
+            os.environ.setdefault(key, value)
+        target = uri or f"sqlite:///{run_folder / 'mlflow.db'}"
         name = f"{run_folder.parent.name}/{run_folder.name}"
-        found = client.get_experiment_by_name(name)
-        return client, found.experiment_id if found else client.create_experiment(name)
+        try:
+            client = MlflowClient(target)
+            found = client.get_experiment_by_name(name)
+            return client, found.experiment_id if found else client.create_experiment(name)
+        except Exception as error:  # a refused, failing or absent server, a bad store: its own
+            why = one_line(str(error).strip().splitlines()[0] if str(error).strip() else "")
+            raise InputError(
+                f"--logger mlflow{'=' + uri if uri else ''}: cannot use the tracking store "
+                f"{target[:80]} ({type(error).__name__}: {why[:160]})"
+            ) from None
 
     def __call__(self, event: str, data: dict[str, Any]) -> None:
         from mlflow.entities import Metric

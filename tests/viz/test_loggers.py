@@ -82,3 +82,17 @@ def test_a_resumed_job_has_one_wandb_run_not_two(tmp_path: Path):
         logger.close()
     (only,) = (job / "wandb").glob("offline-run-*/run-*.wandb")
     assert only.stat().st_size > 0 and not (job / "wandb" / "wandb").exists()
+
+
+def test_an_unreachable_tracking_server_is_one_error_after_a_bounded_wait(tmp_path):
+    """A refused connection: one InputError naming the store within seconds, where MLflow's
+    own retries waited minutes."""
+    pytest.importorskip("mlflow")
+    import time
+
+    from c2inet.errors import InputError
+
+    started = time.monotonic()
+    with pytest.raises(InputError, match=r"--logger mlflow=http://127.0.0.1:1: cannot use"):
+        prepare_tracking(("mlflow=http://127.0.0.1:1",), tmp_path / "runs" / "r")
+    assert time.monotonic() - started < 30
