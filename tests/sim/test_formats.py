@@ -168,15 +168,20 @@ def test_unknown_format_is_refused(tmp_path):
         parse_scenario("bad_a", [tmp_path])
 
 
+def sdd_example(folder: Path) -> None:
+    """examples/sdd.toml in ``folder``, above seven bookstore videos of annotations."""
+    example = Path(__file__).parents[2] / "examples" / "sdd.toml"
+    (folder / "sdd.toml").write_text(example.read_text())
+    for video in range(7):
+        annotations = folder / "annotations" / "bookstore" / f"video{video}"
+        annotations.mkdir(parents=True)
+        (annotations / "annotations.txt").write_text(sdd_annotations(300))
+
+
 def test_the_sdd_example_family_reads_a_location_across_its_videos(tmp_path):
     """examples/sdd.toml in the folder above SDD's annotations/: bookstore trains on videos 0
     to 5 (a wildcard in a folder name) and tests on video 6."""
-    example = Path(__file__).parents[2] / "examples" / "sdd.toml"
-    (tmp_path / "sdd.toml").write_text(example.read_text())
-    for video in range(7):
-        folder = tmp_path / "annotations" / "bookstore" / f"video{video}"
-        folder.mkdir(parents=True)
-        (folder / "annotations.txt").write_text(sdd_annotations(300))
+    sdd_example(tmp_path)
     (spec,) = parse_scenario("sdd_bookstore", [tmp_path])
     assert [Path(p).parent.name for p in spec.knobs["train"]] == [f"video{i}" for i in range(6)]
     domain = build_domain(spec, 0)
@@ -188,12 +193,7 @@ def test_a_pixel_familys_run_reports_pixels_and_a_mix_of_units_is_refused(tmp_pa
     from sim.experiment import ExperimentConfig
     from sim.run import main
 
-    example = Path(__file__).parents[2] / "examples" / "sdd.toml"
-    (tmp_path / "sdd.toml").write_text(example.read_text())
-    for video in range(7):
-        folder = tmp_path / "annotations" / "bookstore" / f"video{video}"
-        folder.mkdir(parents=True)
-        (folder / "annotations.txt").write_text(sdd_annotations(300))
+    sdd_example(tmp_path)
     out = tmp_path / "run"
     argv = ["--scenarios-dir", str(tmp_path), "--scenario", "sdd_bookstore", "--methods", "cv"]
     assert main([*argv, "--quick", "--no-record", "--out", str(out)]) == 0
