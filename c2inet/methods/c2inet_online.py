@@ -24,15 +24,10 @@ from typing import Any
 
 import torch
 
+from c2inet.anchors import Anchors, anchors_from_windows, make_anchors
 from c2inet.batch import make_batch
 from c2inet.methods.base import Method, TaskContext
-from c2inet.model import (
-    C2INET_SPACE,
-    Anchors,
-    C2INetModel,
-    anchors_from_windows,
-    make_anchors,
-)
+from c2inet.model import C2INET_SPACE, C2INetModel
 from c2inet.options import require
 from c2inet.prior import GaussianMixture, QueueConfig, mix, moment_match
 
