@@ -56,7 +56,7 @@ def main(argv: list[str] | None = None) -> int:
     # the learner and the engine load once there is work: --help and a typo answer at once
     from c2inet.report import caption, text_table
     from sim.experiment import ExperimentConfig, run_experiment
-    from sim.experiment.outputs import output_folder
+    from sim.experiment.folders import output_folder
 
     config = ExperimentConfig(args.scenario, **experiment_options(args))
     execution = execution_of(args)

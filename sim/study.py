@@ -20,7 +20,7 @@ from sim.cli import (
     parser,
 )
 from sim.experiment import ExperimentConfig
-from sim.experiment.outputs import claim
+from sim.experiment.folders import claim
 from sim.studies.base import Study, discover, get_study
 from viz.cli import guarded
 

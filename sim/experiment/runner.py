@@ -19,8 +19,9 @@ import torch
 from sim.experiment.backends import run_jobs
 from sim.experiment.config import Execution, ExperimentConfig
 from sim.experiment.estimate import describe, job_seconds, run_seconds
+from sim.experiment.folders import TRUTH_PART, claim, output_folder
 from sim.experiment.jobs import follow, prepare, record_truth, run_job
-from sim.experiment.outputs import TRUTH_PART, claim, output_folder, write_outputs
+from sim.experiment.outputs import write_outputs
 from sim.progress import progress_bar
 from viz.live import check_reachable, viewer_url
 from viz.loggers import prepare_tracking
@@ -37,7 +38,7 @@ def run_experiment(
     """Generate the curriculum, run every job on the chosen backend, write every output.
 
     ``out``: the run's folder (default: a fresh ``runs/<scenario>/<timestamp>``, see
-    ``sim.experiment.outputs.output_folder``); a folder holding anything else is refused unless
+    ``sim.experiment.folders.output_folder``); a folder holding anything else is refused unless
     ``overwrite``. With ``resume``, finished jobs are read back and unfinished ones continue from
     their last task; the configuration must equal the folder's. Returns ``metrics.json``.
     """

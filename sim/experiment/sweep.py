@@ -20,16 +20,9 @@ from c2inet.files import write_text_atomic
 from sim.experiment.backends import run_jobs
 from sim.experiment.config import Execution, ExperimentConfig, Job, parse_settings, parse_value
 from sim.experiment.curriculum import Curriculum
+from sim.experiment.folders import TRUTH_PART, claim, run_root
 from sim.experiment.jobs import JobResult, follow, prepare, record_truth, run_job
-from sim.experiment.outputs import (
-    COLUMNS,
-    TRUTH_PART,
-    claim,
-    run_root,
-    tidy_rows,
-    write_outputs,
-    write_results,
-)
+from sim.experiment.outputs import COLUMNS, tidy_rows, write_outputs, write_results
 from sim.progress import progress_bar
 
 

@@ -45,7 +45,7 @@ from c2inet.options import Choice, Tunable
 from c2inet.trainer import TRAIN_SPACE, Result, Task
 from sim.experiment.config import Execution, ExperimentConfig
 from sim.experiment.curriculum import Curriculum, JobInputs
-from sim.experiment.outputs import MARKER, mark_run
+from sim.experiment.folders import MARKER, mark_run
 from sim.experiment.sweep import Planned, layered, plan, run_together
 
 HOLDOUT = 0.2  # share of a domain's training scenes held out where it has no validation split

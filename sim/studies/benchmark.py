@@ -40,17 +40,9 @@ from c2inet.significance import seeds_to_narrow
 from sim.experiment.backends import kept_workers
 from sim.experiment.config import Execution, ExperimentConfig
 from sim.experiment.estimate import describe, job_seconds, lanes_seconds
+from sim.experiment.folders import MARKER, claim, mark_run
 from sim.experiment.jobs import JobResult, prepare
-from sim.experiment.outputs import (
-    COLUMNS,
-    MARKER,
-    claim,
-    git_commit,
-    mark_run,
-    tidy_rows,
-    write_report,
-    write_results,
-)
+from sim.experiment.outputs import COLUMNS, git_commit, tidy_rows, write_report, write_results
 from sim.experiment.sweep import layered, plan, run_together
 from sim.experiment.tuning import (
     TRIAL_TRAIN,

@@ -172,7 +172,7 @@ def test_the_command_ranks_every_method_and_resumes_to_the_same_leaderboard(tmp_
     again = json.loads((out / "leaderboard.json").read_text())
     assert again.pop("run")["calls"] == 2 and board.pop("run")["calls"] == 1
     assert again == board
-    from sim.experiment.outputs import foreign_entry
+    from sim.experiment.folders import foreign_entry
 
     assert foreign_entry(out) is None  # every file is the benchmark's: --overwrite may remove it
     capsys.readouterr()

@@ -17,7 +17,7 @@ import pytest
 from c2inet.errors import InputError
 from c2inet.files import write_atomic
 from sim.experiment import Execution, ExperimentConfig, run_experiment
-from sim.experiment.outputs import TEMPORARY, claim, output_folder
+from sim.experiment.folders import TEMPORARY, claim, output_folder
 
 QUICK = ["--scenario", "crowd_noise_0.1..0.3", "--quick", "--methods", "c2inet-online,finetune"]
 QUICK_CONFIG = {  # QUICK with --epochs EPOCHS, as the engine takes it
@@ -193,7 +193,7 @@ def test_one_process_at_a_time_holds_a_run_folder(tmp_path):
     """Issue 26, item 6: a second run or resume of a folder in use gets one line."""
     import fcntl
 
-    from sim.experiment.outputs import LOCK
+    from sim.experiment.folders import LOCK
 
     config = ExperimentConfig("crowd_noise_0.1", methods=("cv",), quick=True, record=False)
     run = tmp_path / "run"
@@ -440,7 +440,7 @@ def test_a_damaged_or_foreign_checkpoint_is_one_line_naming_it(tmp_path):
 
 def test_folder_names_stay_short_and_distinct_for_long_scenarios():
     """Issue 26, item 7: a valid 64-value scenario made a 394-character folder name."""
-    from sim.experiment.outputs import MAX_NAME, run_root
+    from sim.experiment.folders import MAX_NAME, run_root
 
     values = ",".join(f"0.{i:03d}" for i in range(1, 65))
     long_one, other = f"crowd_noise_{values}", f"crowd_noise_{values},0.9"
@@ -508,7 +508,8 @@ def test_the_estimate_times_the_second_tasks_steps_and_every_hook():
 def test_a_report_is_ours_because_the_marker_records_it_not_because_of_its_name(tmp_path):
     """No list of report names: a folder's marker records the reports its owner wrote, so
     --overwrite removes those and refuses a user's file of the same shape."""
-    from sim.experiment.outputs import foreign_entry, mark_run, write_report
+    from sim.experiment.folders import foreign_entry, mark_run
+    from sim.experiment.outputs import write_report
 
     out = tmp_path / "study"
     out.mkdir()
