@@ -26,7 +26,10 @@ from c2inet.model import LossOutput, ModelConfig, Predictor
 from c2inet.options import Choice, Tunable, build
 from c2inet.registry import Registry
 
-REGISTRY: Registry[type[Method]] = Registry("method", "c2inet.methods", "c2inet.methods")
+PLUGINS = "c2inet.methods"  # the entry-point group through which other packages add methods
+REGISTRY: Registry[type[Method]] = Registry(
+    "method", "c2inet.methods", PLUGINS, lambda entry: _is_method(entry)
+)
 METHODS = REGISTRY.entries  # name -> class, filled as the method modules are imported
 
 
@@ -167,16 +170,11 @@ def count_floats(value: Any) -> int:
     return 0
 
 
-PLUGINS = "c2inet.methods"  # the entry-point group through which other packages add methods
-
-
 def _is_method(entry: Any) -> str | None:
+    """Why a plugin's entry point is not a method (None: it is one)."""
     if isinstance(entry, type) and issubclass(entry, Method):
         return None
     return f"{entry!r} is not a subclass of c2inet.methods.base.Method"
-
-
-REGISTRY.accepts = _is_method
 
 
 def discover() -> dict[str, type[Method]]:
