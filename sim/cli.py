@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 from c2inet.errors import InputError, did_you_mean, one_line
 from sim.experiment.backends import BACKENDS
 from sim.experiment.defaults import DEFAULT_METHODS
+from sim.experiment.folders import MAX_CONFIG_BYTES
 from sim.families import available_families, load_family
 from sim.generators import get_generator
 from viz.cli import bounded_float, bounded_int, config_path, plain_parser
@@ -155,7 +156,6 @@ def _typed(path: Path, key: str, value: Any) -> None:
         raise InputError(f"--config {path}: {key} = {value!r}: expected {expected}")
 
 
-MAX_CONFIG_BYTES = 1 << 20  # a configuration is a few kilobytes; more is not one of ours
 # what a run's config.json may carry over from its execution table: how much of this machine
 # to use. Where data goes (a cache folder, a tracking server, a viewer, a Ray cluster) is never
 # taken from someone else's file
