@@ -28,17 +28,18 @@ def presets() -> str:
     )
 
 
-@guarded
-def main(argv: list[str] | None = None) -> int:
-    examples = (
-        "  python -m sim.bench radius --methods all --jobs 2\n"
-        "  python -m sim.bench radius --methods all --jobs 2 --resume \\\n"
-        "      --compare c2inet-online,finetune   # then seeds until the pair is decided\n"
-        "  python -m sim.bench --scenario crowd_noise_0.1..0.3 --methods finetune,ewc \\\n"
-        "      --trials 4 --seeds 3 --quick --out benchmarks_out/smoke\n"
-        f"presets:\n{presets()}"
-    )
-    p = command_parser("sim.bench", __doc__.splitlines()[0], examples)
+EXAMPLES = (
+    "  python -m sim.bench radius --methods all --jobs 2\n"
+    "  python -m sim.bench radius --methods all --jobs 2 --resume \\\n"
+    "      --compare c2inet-online,finetune   # then seeds until the pair is decided\n"
+    "  python -m sim.bench --scenario crowd_noise_0.1..0.3 --methods finetune,ewc \\\n"
+    "      --trials 4 --seeds 3 --quick --out benchmarks_out/smoke\n"
+)
+
+
+def bench_parser():
+    """The command's options: a run's, the protocol's sizes and the decisive pair's."""
+    p = command_parser("sim.bench", __doc__.splitlines()[0], EXAMPLES + f"presets:\n{presets()}")
     p.add_argument("preset", nargs="?", help=f"one of {', '.join(PRESETS)} (or --scenario)")
     add_experiment_options(p, methods="all", record=True)
     p.set_defaults(seeds=SEEDS)
@@ -90,32 +91,34 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--tune-scenario", help="the tuning curriculum (default: the preset's)")
     p.add_argument("--storage", help="an Optuna storage URL shared by trials (default: SQLite)")
     p.add_argument("--out", type=Path, help="the benchmark's folder (default bench/PRESET)")
+    return p
+
+
+@guarded
+def main(argv: list[str] | None = None) -> int:
+    p = bench_parser()
     argv = sys.argv[1:] if argv is None else argv
     args = parse(p, argv, scenario_required=False)
     if args is None:
         return 0
     if (args.preset is None) == (args.scenario is None):
         p.error("give a preset or --scenario (one of them)")
-    tune_scenario = args.tune_scenario
+    preset = None
     if args.preset is not None:
         if args.preset not in PRESETS:
             hint = did_you_mean(args.preset, PRESETS)
             raise InputError(f"preset {args.preset!r}: unknown (known: {', '.join(PRESETS)}){hint}")
         preset = PRESETS[args.preset]
         args.scenario = preset.scenario
-        tune_scenario = tune_scenario or preset.tune_scenario
-    data = PRESETS[args.preset].data if args.preset else {}
-    name = args.preset or "custom"
-    out = args.out or Path("bench") / name
+    out = args.out or Path("bench") / (args.preset or "custom")
     from sim.experiment import ExperimentConfig  # the engine loads once there is work
     from sim.studies.benchmark import BenchConfig, run_bench
     from sim.studies.leaderboard import leaderboard_markdown
 
-    base = ExperimentConfig(args.scenario, **experiment_options(args))
     bench = BenchConfig(
-        base,
-        name,
-        tune_scenario,
+        ExperimentConfig(args.scenario, **experiment_options(args)),
+        args.preset or "custom",
+        args.tune_scenario or (preset.tune_scenario if preset else None),
         args.trials,
         args.storage,
         args.replay_budget or None,
@@ -124,7 +127,7 @@ def main(argv: list[str] | None = None) -> int:
         tuple(args.compare.split(",")) if args.compare else (),
         args.width,
         args.max_seeds,
-        data,
+        preset.data if preset else {},
     )
     try:
         board = run_bench(
