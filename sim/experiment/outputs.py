@@ -140,12 +140,11 @@ def write_outputs(
     recording; returns the metrics. ``truth``: the run's own recorder (None when nothing is
     recorded)."""
     tasks = [t.name for t in curriculum.inputs.tasks]
-    labels = curriculum.labels
     summary = summarise_jobs(config, results)
     metrics = {
         "scenario": config.scenario,
         "tasks": tasks,
-        "labels": labels,
+        "labels": curriculum.labels,
         "k": config.k,
         "seed": config.seed,
         "epochs": config.epochs,
@@ -161,7 +160,38 @@ def write_outputs(
             write_text_atomic(
                 out / "matrices" / f"{name}_{key}.csv", matrix_csv(result[key], tasks)
             )
-    run_card = {
+    card = json.dumps(run_card(config, execution, curriculum, wall, argv), indent=1)
+    write_text_atomic(out / "run_card.json", card + "\n")
+    run = {
+        "quick": config.quick,
+        "epochs": config.epochs,
+        "seeds": config.seeds,
+        "wall_seconds": wall,
+        "command": shlex.join(argv),
+        "recording": "recording.rrd" if config.record else None,
+        "unit": config.unit,
+        "figures": [],
+    }
+    if figures:
+        note = "quick sizes: a smoke test, not a result" if config.quick else None
+        draw_figures(out, curriculum, summary, results, note, config.unit)
+        run["figures"] = sorted(p.relative_to(out).as_posix() for p in out.glob("figures/*.png"))
+    report = markdown_report(config.scenario, curriculum.labels, config.k, summary, run)
+    write_text_atomic(out / "report.md", report)
+    if truth is not None:
+        truth.log_run_card(f"{report}\n## Run card\n\n```json\n{card}\n```\n")
+        truth.close()
+        if config.record:
+            parts = [out / TRUTH_PART]
+            parts += [r.job.folder(out) / "recording.rrd" for r in results if r.predictions]
+            merge_recordings(parts, out / "recording.rrd")
+            parts[0].unlink()
+    return metrics
+
+
+def run_card(config, execution, curriculum, wall: float, argv: list[str]) -> dict[str, Any]:
+    """How a run ran: its command, commit, machine, sizes, options and versions."""
+    return {
         "scenario": config.scenario,
         "seed": config.seed,
         "seeds": config.seeds,
@@ -184,33 +214,6 @@ def write_outputs(
         "windows": {t.name: _window_counts(t) for t in curriculum.inputs.tasks},
         "config_file": config_file(argv),
     }
-    card = json.dumps(run_card, indent=1)
-    write_text_atomic(out / "run_card.json", card + "\n")
-    run = {
-        "quick": config.quick,
-        "epochs": config.epochs,
-        "seeds": config.seeds,
-        "wall_seconds": wall,
-        "command": shlex.join(argv),
-        "recording": "recording.rrd" if config.record else None,
-        "unit": config.unit,
-        "figures": [],
-    }
-    if figures:
-        note = "quick sizes: a smoke test, not a result" if config.quick else None
-        draw_figures(out, curriculum, summary, results, note, config.unit)
-        run["figures"] = sorted(p.relative_to(out).as_posix() for p in out.glob("figures/*.png"))
-    report = markdown_report(config.scenario, labels, config.k, summary, run)
-    write_text_atomic(out / "report.md", report)
-    if truth is not None:
-        truth.log_run_card(f"{report}\n## Run card\n\n```json\n{card}\n```\n")
-        truth.close()
-        if config.record:
-            parts = [out / TRUTH_PART]
-            parts += [r.job.folder(out) / "recording.rrd" for r in results if r.predictions]
-            merge_recordings(parts, out / "recording.rrd")
-            parts[0].unlink()
-    return metrics
 
 
 def draw_figures(
