@@ -121,10 +121,16 @@ def test_the_checker_catches_broken_methods(cls, message):
 def test_the_checker_fails_a_c2inet_whose_queue_prior_cannot_act(monkeypatch):
     """With 8 free nats (the earlier default) KL_C has no gradient on the checker's scenes, so
     switching Eq 17 off changes nothing: C2INet's declared mechanism is inert, and it fails."""
+    import dataclasses
+
     from c2inet import checker
     from c2inet.model import ModelConfig
 
-    monkeypatch.setattr(checker, "ModelConfig", lambda: ModelConfig(free_bits_c=8.0))
+    @dataclasses.dataclass
+    class EightFreeNats(ModelConfig):
+        free_bits_c: float = 8.0
+
+    monkeypatch.setattr(checker, "ModelConfig", EightFreeNats)
     with pytest.raises(MethodCheckError, match=r"options \{'eq17': False\} change nothing"):
         check_method(METHODS["c2inet-online"])
 
