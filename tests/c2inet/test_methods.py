@@ -131,8 +131,10 @@ def test_the_checker_fails_a_c2inet_whose_queue_prior_cannot_act(monkeypatch):
         free_bits_c: float = 8.0
 
     monkeypatch.setattr(checker, "ModelConfig", EightFreeNats)
+    cls, tasks = METHODS["c2inet-online"], checker.turning_tasks(turns=(0.1, 0.2, 0.3))
+    whole, _ = checker._run(cls, tasks)
     with pytest.raises(MethodCheckError, match=r"options \{'eq17': False\} change nothing"):
-        check_method(METHODS["c2inet-online"])
+        checker.check_live(cls, tasks, whole)
 
 
 def test_the_checker_catches_a_trainer_that_leaks_later_tasks(monkeypatch):
