@@ -212,11 +212,11 @@ def _command(module: str, stubbed: str, argv: list[str]) -> int:
 
 
 def run_command_target(argv: list[str]) -> int:
-    return _command("sim.run", "sim.run.run_experiment", argv)
+    return _command("sim.run", "sim.experiment.runner.run_experiment", argv)
 
 
 def generate_command_target(argv: list[str]) -> int:
-    return _command("sim.generate", "sim.generate.build_domain", [*argv, "--out", "out"])
+    return _command("sim.generate", "sim.domains.build_domain", [*argv, "--out", "out"])
 
 
 def data_file_target(text: str) -> Any:

@@ -171,7 +171,7 @@ def test_seeds_give_mean_and_std(tmp_path, capsys):
     ("args", "message"),
     [
         (["--scenario", "crowd_noise_0.1", "--methods", "sgd"], "method 'sgd': unknown"),
-        (["--scenario", "crowd_noise_0.1", "--backbone", "resnet"], "invalid choice"),
+        (["--scenario", "crowd_noise_0.1", "--backbone", "resnet"], "backbone 'resnet': unknown"),
         (["--scenario", "crowd_noise_0.1", "--seeds", "0"], "--seeds"),
         (["--scenario", "crowd_noise_0.1", "--k", "0"], "--k"),
         (["--scenario", "crowd_noise_1..0"], "reversed"),

@@ -143,7 +143,7 @@ def test_long_inputs_are_refused_before_parsing_with_a_short_message(scenario, m
         ('generator = "crowd"\nknob = "noise"\n[knobs]\nradiuss = 0.2\n', "unknown key 'radiuss'"),
         ('generator = "crowd"\nknob = "noise"\n[splits]\ntrian = 3\n', "unknown key 'trian'"),
         ('generator = "crowd"\nknob = "nosie"\n', "not a knob"),
-        ('generator = "warp"\nknob = "noise"\n', "unknown generator"),
+        ('generator = "warp"\nknob = "noise"\n', "generator 'warp': unknown"),
         ('generator = "crowd"\nknob = "noise"\n[knobs]\nagents = "many"\n', "must be an integer"),
         ('generator = "crowd"\nknob = "noise"\n[knobs]\nlayout = "maze"\n', "layout"),
         ("generator = [", "cannot read"),
