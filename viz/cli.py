@@ -7,6 +7,7 @@ command lines build on it.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -62,6 +63,9 @@ def guarded(main: Callable[[list[str] | None], int]) -> Callable[[list[str] | No
         except (WorkerDied, CannotWrite) as error:
             print(f"error: {one_line(str(error))}", file=sys.stderr)
             return 1
+        except BrokenPipeError:  # the reader left (| head): stop quietly, as a shell tool does
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            return 0
 
     return run
 
