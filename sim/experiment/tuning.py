@@ -111,6 +111,20 @@ def search_space(method: str) -> dict[str, Tunable | Choice]:
     return {**TRAIN_SPACE, **cls.search_space} if cls.trains else {}
 
 
+def _check_params(study: str, method: str, params: dict[str, Any]) -> None:
+    """Refuse a stored trial whose settings this benchmark's search could not have asked: a
+    key outside the method's search space (the ``data`` scope, say) or a value outside its
+    range. Such a trial is not ours, and would become the choice unseen."""
+    space = search_space(method)
+    for key, value in params.items():
+        if key not in space or not space[key].holds(value):
+            raise InputError(
+                f"tuning: the stored study {study!r} holds a trial with {key}={value!r}, which "
+                f"{method}'s search space could not ask; not this benchmark's (another --storage "
+                "or --overwrite)"
+            )
+
+
 def as_settings(method: str, params: dict[str, Any]) -> dict[str, dict[str, Any]]:
     """Trial parameters (``train.lr``, ``strength``...) as ``--set`` settings by scope."""
     settings: dict[str, dict[str, Any]] = {}
@@ -293,6 +307,7 @@ def run_tuning(
         trials = finished(method)
         complete = finished(method, (TrialState.COMPLETE,))
         best = min(complete, key=lambda t: (t.value, t.number))
+        _check_params(studies[method].study_name, method, best.params)
         chosen[method] = {
             "settings": as_settings(method, best.params),
             "objective": _finite(best.value),

@@ -391,3 +391,23 @@ def test_a_bad_storage_is_one_line_before_anything_is_written(tmp_path, capsys):
         err = capsys.readouterr().err
         assert message in err and len(err.strip().splitlines()) == 1 and not out.exists()
     assert foreign.read_bytes() == before
+
+
+def test_a_planted_trial_outside_the_search_space_is_refused_not_chosen(tmp_path):
+    """A stored study of the benchmark's name holding a finished trial the search could not
+    have asked (a data knob, a rate beyond the range), and the best of them: never the choice."""
+    import optuna
+    from optuna.distributions import FloatDistribution
+
+    base = ExperimentConfig("crowd_noise_0.1,0.2", methods=("finetune",), quick=True)
+    tune = TuneConfig(base, trials=1)
+    storage = f"sqlite:///{(tmp_path / 'tuning.db').resolve()}"
+    study = optuna.create_study(study_name="finetune", storage=storage, direction="minimize")
+    planted = optuna.trial.create_trial(
+        params={"train.lr": 9.0},
+        distributions={"train.lr": FloatDistribution(1e-5, 10.0, log=True)},
+        value=0.0,
+    )
+    study.add_trial(planted)
+    with pytest.raises(InputError, match=r"holds a trial with train.lr=9.0, which finetune"):
+        run_tuning(tune, tmp_path, Execution(cache=tmp_path / "cache"))
