@@ -80,11 +80,12 @@ def clear_output(out: Path, overwrite: bool) -> None:
     root = out.resolve()
     folders = set()
     for name, digest in written.items():
-        path = (out / str(name)).resolve()
-        inside = path.is_relative_to(root) and path != root
-        if inside and path.is_file() and not path.is_symlink() and file_digest(path) == digest:
+        path = out / str(name)  # a link is never followed: only a plain file of ours goes
+        inside = path.resolve().is_relative_to(root) and path.resolve() != root
+        if inside and not path.is_symlink() and path.is_file() and file_digest(path) == digest:
             path.unlink()
-            folders.update(p for p in path.parents if p.is_relative_to(root) and p != root)
+            parents = (p.resolve() for p in path.parents)
+            folders.update(p for p in parents if p.is_relative_to(root) and p != root)
     for folder in sorted(folders, key=lambda p: len(p.parts), reverse=True):
         if folder.is_dir() and not any(folder.iterdir()):
             folder.rmdir()
