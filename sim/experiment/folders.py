@@ -236,11 +236,11 @@ def remove_leftovers(out: Path) -> list[Path]:
     return leftovers
 
 
-def _run_output(entry: Path) -> bool:
-    """A file or folder a run writes into its own folder (or that its marker records)."""
+def _run_output(entry: Path, marked: set[str]) -> bool:
+    """A file or folder a run writes into its own folder (or that its marker, ``marked``,
+    records)."""
     if entry.is_file():
-        ours = entry.name in RUN_FILES or entry.name in marked_files(entry.parent)
-        return ours or bool(TEMPORARY.match(entry.name))
+        return entry.name in RUN_FILES | marked or bool(TEMPORARY.match(entry.name))
     return entry.is_dir() and entry.name in RUN_FOLDERS
 
 
@@ -250,6 +250,7 @@ def foreign_entry(folder: Path, runs_only: bool = False) -> Path | None:
     Ours: the marker and the run's own files and folders, temporary files of an interrupted
     write, and nested run folders (a sweep's, a tuning's trials), alone or grouped in plain
     folders, at any depth, that hold nothing else (``runs_only``)."""
+    marked = set(marked_files(folder))  # read once, not once an entry
     for entry in sorted(folder.iterdir()):
         run = entry.is_dir() and not entry.is_symlink() and (entry / MARKER).is_file()
         if entry.is_symlink():
@@ -259,7 +260,7 @@ def foreign_entry(folder: Path, runs_only: bool = False) -> Path | None:
         elif runs_only:
             grouped = entry.is_dir() and any(entry.iterdir())
             inner = foreign_entry(entry, runs_only=True) if grouped else entry
-        elif _run_output(entry):
+        elif _run_output(entry, marked):
             continue
         elif entry.is_dir() and any(entry.iterdir()):  # a sweep's scenario folder
             inner = foreign_entry(entry, runs_only=True)
