@@ -91,6 +91,12 @@ def bench_parser():
     p.add_argument("--tune-scenario", help="the tuning curriculum (default: the preset's)")
     p.add_argument("--storage", help="an Optuna storage URL shared by trials (default: SQLite)")
     p.add_argument("--out", type=Path, help="the benchmark's folder (default bench/PRESET)")
+    p.add_argument(
+        "--estimate",
+        action="store_true",
+        help="time one trial and one job of every method on this machine, print what the "
+        "benchmark would cost, and stop (writes nothing)",
+    )
     return p
 
 
@@ -112,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
         args.scenario = preset.scenario
     out = args.out or Path("bench") / (args.preset or "custom")
     from sim.experiment import ExperimentConfig  # the engine loads once there is work
-    from sim.studies.benchmark import BenchConfig, run_bench
+    from sim.studies.benchmark import BenchConfig, estimate_bench, estimate_table, run_bench
     from sim.studies.leaderboard import leaderboard_markdown
 
     bench = BenchConfig(
@@ -129,6 +135,9 @@ def main(argv: list[str] | None = None) -> int:
         args.max_seeds,
         preset.data if preset else {},
     )
+    if args.estimate:
+        print(estimate_table(bench, estimate_bench(bench, execution_of(args))))
+        return 0
     try:
         board = run_bench(
             bench, out, execution_of(args), args.resume, args.overwrite, [*p.prog.split(), *argv]

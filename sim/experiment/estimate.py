@@ -1,11 +1,13 @@
 """How long a run will take, measured before it starts.
 
-Each method trains on this machine through the first two tasks for a few steps each, with its
-hooks: the steps of the second task carry what a method adds once it has a past (replay, a
+Each method trains on this machine through every task for a few steps each, with its hooks:
+the steps from the second task on carry what a method adds once it has a past (replay, a
 teacher's forward pass, projected gradients), and its task and epoch hooks (Fisher, buffers,
-Eq 8 fits) are timed as they run. One evaluation and one set of diagnostics follow; the run's
-cost follows from how often each happens (steps per epoch, epochs, evaluations of every task
-after every task, validation of the tasks seen). Timed in CPU seconds of this process (one
+Eq 8 fits) are timed as they run; each task is timed on its own scenes, so a stream of unlike
+ones (ETH-UCY's univ of 28 agents a window, then eth of 2) costs what each task costs. One
+evaluation of each task's test split follows; the run's cost follows from how often each
+happens (steps per epoch, epochs, evaluations of every task after every task, validation of the
+tasks seen). Timed in CPU seconds of this process (one
 torch thread), so a machine busy with other work does not inflate it; the wall time follows
 from the jobs run at once. An estimate: later tasks change it.
 """
@@ -85,39 +87,42 @@ def task_seconds(
 
 
 def method_seconds(config, name: str, tasks: list[Task], warm_up: bool = False) -> float:
-    """The estimated time of one job of method ``name`` through ``tasks`` (one thread). With
-    ``warm_up``, an evaluation and diagnostics run untimed first: a process's first ones import
-    and allocate what later ones reuse (scikit-learn alone: 0.7 s, counted once a task)."""
+    """The estimated time of one job of method ``name`` through ``tasks`` (one thread): a few
+    steps and the hooks of every task timed as it trains (a stream of unlike scenes, ETH-UCY's,
+    costs what each of its tasks costs), and one evaluation of each task's test split, counted
+    as often as the run evaluates it. With ``warm_up``, an evaluation and diagnostics run
+    untimed first: a process's first ones import and allocate what later ones reuse
+    (scikit-learn alone: 0.7 s, counted once a task)."""
     method, train = config.method(name), config.train_config()
     n, first = len(tasks), tasks[0]
     with torch.random.fork_rng(devices=[]):
         model, optimiser, rng = start_training(method, train)
         total = 0.0
         if method.trains:
-            timed = []  # (seconds a step, seconds of hooks) of the first task, then the second
-            for i, task in enumerate(tasks[:2]):
+            for i, steps in enumerate(training_steps(method, tasks, train.batch_scenes)):
+                task = tasks[i]
                 seen = [t.train for t in tasks[:i]] if method.sees_old_tasks else []
                 ctx = TaskContext(i, task.name, task.train, model, optimiser, rng, seen, tasks=n)
-                timed.append(task_seconds(method, ctx, train, config.epochs))
-            for i, steps in enumerate(training_steps(method, tasks, train.batch_scenes)):
-                per_step, hooks = timed[min(i, len(timed) - 1)]
+                per_step, hooks = task_seconds(method, ctx, train, config.epochs)
                 total += per_step * steps * config.epochs + hooks
-            if first.val is not None and train.val_every:
-                val = _seconds(lambda: evaluate(model, first.val, 1, 0, point_draws=0))
-                total += val * config.epochs / train.val_every * n * (n + 1) / 2
+                if task.val is not None and train.val_every:  # the tasks seen, every val_every
+                    val = _seconds(lambda t=task: evaluate(model, t.val, 1, 0, point_draws=0))
+                    total += val * config.epochs / train.val_every * (n - i)
 
-        def evaluation() -> None:
-            evaluate_all(model, first.test, config.k, 0, variants=train.test_rules)
+        def evaluation(task: Task) -> None:
+            evaluate_all(model, task.test, config.k, 0, variants=train.test_rules)
 
-        def diagnostics() -> None:
+        def diagnostics(task: Task) -> None:
             if train.diagnostics:
-                diagnose(model, [first.test], [first.value], 0)
+                diagnose(model, [task.test], [task.value], 0)
 
         if warm_up:
-            evaluation()
-            diagnostics()
-        evaluations = n * n if train.eval_unseen else n * (n + 1) / 2
-        total += _seconds(evaluation) * evaluations + _seconds(diagnostics) * n * (n + 1) / 2
+            evaluation(first)
+            diagnostics(first)
+        for j, task in enumerate(tasks):  # task j is evaluated after every task from j on
+            times = n if train.eval_unseen else n - j
+            once = _seconds(lambda t=task: evaluation(t)) + _seconds(lambda t=task: diagnostics(t))
+            total += once * times
     return total
 
 

@@ -231,7 +231,30 @@ def estimate_bench(bench: BenchConfig, execution: Execution) -> dict[str, Any]:
         "cpu_seconds": tuning_cpu + evaluation_cpu,
         "tuning_cpu_seconds": tuning_cpu,
         "wall_seconds": tuning_cpu / execution.jobs + lanes_seconds(jobs, execution.jobs),
+        "jobs": execution.jobs,
     }
+
+
+def estimate_line(cost: dict[str, Any], jobs: int) -> str:
+    """The estimate in one line, as a board prints it before it starts."""
+    return (
+        f"{sum(cost['trials'].values())} tuning trials and {sum(cost['seeds'].values())} "
+        f"evaluation jobs, {jobs} at a time: about {describe(cost['wall_seconds'])} "
+        f"({cost['cpu_seconds']:.0f} CPU s, timed on this machine)"
+    )
+
+
+def estimate_table(bench: BenchConfig, cost: dict[str, Any]) -> str:
+    """``sim.bench --estimate``: each method's CPU seconds a trial and a job, its trials and
+    seeds, and what they add up to, so a preset can be sized before it runs."""
+    rows = ["| method | trial (CPU s) | trials | job (CPU s) | seeds | in all (CPU s) |"]
+    rows.append("|---|---|---|---|---|---|")
+    for m in bench.base.methods:
+        trials, seeds = cost["trials"].get(m, 0), cost["seeds"][m]
+        spent = trials * cost["trial"].get(m, 0.0) + seeds * cost["job"][m]
+        trial = f"{cost['trial'][m]:.1f}" if trials else "-"  # untuned, or a reference
+        rows.append(f"| {m} | {trial} | {trials} | {cost['job'][m]:.1f} | {seeds} | {spent:.0f} |")
+    return "\n".join(rows) + f"\n\n{bench.name}: " + estimate_line(cost, cost["jobs"])
 
 
 def seed_count(bench: BenchConfig, method: str) -> int:
@@ -378,13 +401,7 @@ def run_bench(
     if not resume and not bench.base.quick:  # timing a quick benchmark costs as much as running it
         cost = estimate_bench(bench, execution)
         estimate = {k: round(cost[k], 1) for k in ("cpu_seconds", "wall_seconds")}
-        print(
-            f"{sum(cost['trials'].values())} tuning trials and "
-            f"{sum(cost['seeds'].values())} evaluation jobs, {execution.jobs} at a time: about "
-            f"{describe(cost['wall_seconds'])} ({cost['cpu_seconds']:.0f} CPU s, timed "
-            "on this machine)",
-            file=sys.stderr,
-        )
+        print(estimate_line(cost, execution.jobs), file=sys.stderr)
     with kept_workers():  # the tuning rounds and the evaluation start the workers once
         chosen = run_tuning(bench.tuning(), out / "tuning", execution)
         (out / "evaluation").mkdir(exist_ok=True)

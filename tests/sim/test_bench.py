@@ -14,7 +14,7 @@ from sim.experiment import ExperimentConfig
 from sim.experiment.config import Execution, Job
 from sim.experiment.jobs import JobResult, prepare
 from sim.experiment.tuning import TuneConfig, run_tuning, trial_seconds, validation_inputs
-from sim.studies.benchmark import BATCH, PRESETS, BenchConfig, estimate_bench
+from sim.studies.benchmark import BATCH, PRESETS, BenchConfig, estimate_bench, estimate_table
 
 BAD_LR = 1e-5  # a default that barely trains in two epochs
 
@@ -308,6 +308,23 @@ def test_the_benchmark_estimate_times_a_trial_as_tuning_runs_it_and_adds_every_j
     assert cost["tuning_cpu_seconds"] == 3 * 10.0
     assert cost["cpu_seconds"] == 3 * 10.0 + 2 * (20.0 + 20.0)
     assert cost["wall_seconds"] == 30.0 / 2 + lanes_seconds([20.0] * 4, 2)
+    table = estimate_table(bench, cost)  # what ``sim.bench --estimate`` prints
+    assert "| finetune | 10.0 | 3 | 20.0 | 2 | 70 |" in table
+    assert "| cv | - | 0 | 20.0 | 2 | 40 |" in table
+    assert "3 tuning trials and 4 evaluation jobs, 2 at a time" in table
+
+
+def test_the_estimate_flag_prints_the_cost_and_writes_nothing(tmp_path, capsys, monkeypatch):
+    from sim.studies import benchmark as bench_module
+
+    monkeypatch.setattr(
+        bench_module, "job_seconds", lambda config, tasks: dict.fromkeys(config.methods, 1.0)
+    )
+    monkeypatch.chdir(tmp_path)
+    args = ["--scenario", "crowd_noise_0.1,0.2", "--methods", "finetune,cv", "--quick"]
+    assert main([*args, "--seeds", "2", "--estimate", "--cache", "cache"]) == 0
+    assert "| finetune | 1.0 |" in capsys.readouterr().out
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cache"]  # no benchmark folder
 
 
 def test_a_shared_storage_keeps_two_benchmarks_apart(tmp_path):

@@ -463,7 +463,7 @@ def test_the_estimate_steps_through_the_growing_data_of_joint():
     assert training_steps(get_method("joint"), tasks, 2) == [2, 4, 6]
 
 
-def test_the_estimate_times_the_second_tasks_steps_and_every_hook():
+def test_the_estimate_times_a_tasks_steps_with_its_past_and_every_hook():
     """Replay, teachers and projections start with the second task, Eq 8 fits at epoch ends:
     a method that spends 50 ms of CPU a step from its second task on, 30 ms at each epoch's end
     and 40 ms at each task's end is timed with all three (in CPU time: a sleep would not count)."""
@@ -503,6 +503,46 @@ def test_the_estimate_times_the_second_tasks_steps_and_every_hook():
     assert step_1 > step_0 + 0.03
     for hooks in (hooks_0, hooks_1):
         assert 10 * 0.03 + 0.04 <= hooks < 2 * (10 * 0.03 + 0.04)  # each once, not per step
+
+
+def test_the_estimate_times_every_task_on_its_own_scenes():
+    """A stream of unlike tasks (ETH-UCY: univ's crowds, then eth's pairs) costs what each task
+    costs: a third task whose steps are slow makes the job dearer than the first two foretell."""
+    from types import SimpleNamespace
+
+    from c2inet.data import Windows
+    from c2inet.methods.finetune import Finetune
+    from c2inet.model import ModelConfig
+    from c2inet.trainer import Task, TrainConfig
+    from sim.experiment.estimate import method_seconds
+
+    def spin(seconds: float) -> None:
+        until = time.process_time() + seconds
+        while time.process_time() < until:
+            pass
+
+    class SlowOnBig(Finetune, register=False):
+        """Fine-tuning whose steps on the task named big are slow."""
+
+        def before_backward(self, ctx):
+            spin(0.02 if ctx.name == "big" else 0)
+
+    positions = np.random.default_rng(0).normal(size=(8, 20, 2)).astype(np.float32)
+    windows = Windows(positions, np.arange(9))
+    config = SimpleNamespace(
+        method=lambda name: SlowOnBig(ModelConfig()),
+        train_config=lambda: TrainConfig(batch_scenes=2, val_every=0),
+        epochs=2,
+        k=2,
+    )
+    names = {"alike": ["a", "b", "c"], "unlike": ["a", "b", "big"]}
+    method_seconds(config, "slow", [Task("a", windows, None, windows)], warm_up=True)  # imports
+    cost = {
+        kind: method_seconds(config, "slow", [Task(n, windows, None, windows) for n in tasks])
+        for kind, tasks in names.items()
+    }
+    # 4 steps an epoch, 2 epochs: 8 slow steps of 20 ms on the third task alone
+    assert cost["unlike"] - cost["alike"] > 8 * 0.02 * 0.8
 
 
 def test_a_report_is_ours_because_the_marker_records_it_not_because_of_its_name(tmp_path):
