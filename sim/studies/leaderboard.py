@@ -235,3 +235,56 @@ def leaderboard_markdown(board: dict[str, Any]) -> str:
         "",
     ]
     return "\n".join(lines)
+
+
+def boards_table(boards: dict[str, dict[str, Any]]) -> str:
+    """The tuned Table 2: one column per committed board (``leaderboard.json``, by name), each
+    ranked method's final K = 1 ADE with its rank and ``*`` where it differs from fine-tuning
+    after Holm's correction, methods ordered by their mean rank; then the decisive pairs and the
+    references. Made from the boards alone, so REPRODUCTION can never disagree with them."""
+    names = list(boards)
+    cells: dict[str, dict[str, str]] = {}
+    ranks: dict[str, list[int]] = {}
+    for name, board in boards.items():
+        for entry in board["entries"]:
+            cell = entry["final_ade_k1"]
+            mark = " *" if cell.get("significant") else ""
+            cells.setdefault(entry["method"], {})[name] = (
+                f"{cell['mean']:.3f} ({entry['rank']}){mark}"
+            )
+            ranks.setdefault(entry["method"], []).append(entry["rank"])
+    order = sorted(cells, key=lambda m: (sum(ranks[m]) / len(ranks[m]), m))
+    header = "| method | " + " | ".join(f"`{n}`" for n in names) + " |"
+    lines = [header, "|---|" + "---|" * len(names)]
+    lines += [f"| {m} | " + " | ".join(cells[m].get(n, "-") for n in names) + " |" for m in order]
+    pairs = []
+    for name, board in boards.items():
+        pair = board.get("decisive") or {}
+        if pair:
+            low, high = pair["interval"]
+            pairs.append(
+                f"- `{name}`: {pair['pair'][0]} minus {pair['pair'][1]}, {pair['seeds']} paired "
+                f"seeds: {pair['difference']:+.4f} m [{low:+.4f}, {high:+.4f}]; {pair['verdict']}"
+            )
+    references = [
+        f"- `{name}`: "
+        + ", ".join(f"{r['method']} {r['final_ade_k1']['mean']:.3f}" for r in board["references"])
+        for name, board in boards.items()
+        if board.get("references")
+    ]
+    return (
+        "\n".join(
+            [
+                *lines,
+                "",
+                "Decisive pairs:",
+                "",
+                *(pairs or ["- none run"]),
+                "",
+                "References (not ranked):",
+                "",
+                *references,
+            ]
+        )
+        + "\n"
+    )

@@ -428,3 +428,54 @@ def test_a_planted_trial_outside_the_search_space_is_refused_not_chosen(tmp_path
     study.add_trial(planted)
     with pytest.raises(InputError, match=r"holds a trial with train.lr=9.0, which finetune"):
         run_tuning(tune, tmp_path, Execution(cache=tmp_path / "cache"))
+
+
+def test_reproductions_tuned_table_is_made_from_the_committed_boards():
+    """REPRODUCTION's tuned Table 2 is the boards' own numbers: stale, the check fails."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    check = [sys.executable, str(root / "scripts" / "tuned_table.py"), "--check"]
+    done = subprocess.run(check, capture_output=True, text=True)
+    assert done.returncode == 0, done.stdout
+
+
+def test_the_tuned_table_ranks_methods_by_their_mean_rank_and_marks_holm():
+    from sim.studies.leaderboard import boards_table
+
+    def entry(method, rank, mean, significant):
+        return {
+            "method": method,
+            "rank": rank,
+            "final_ade_k1": {"mean": mean, "significant": significant},
+        }
+
+    boards = {
+        "a": {"entries": [entry("x", 1, 0.1, True), entry("finetune", 2, 0.2, False)]},
+        "b": {
+            "entries": [entry("y", 1, 0.2, True), entry("finetune", 2, 0.3, False)]
+            + [entry("x", 3, 0.4, False)],
+            "decisive": {
+                "pair": ["x", "finetune"],
+                "seeds": 30,
+                "difference": 0.1,
+                "interval": [0.05, 0.15],
+                "verdict": "finetune is better",
+            },
+            "references": [{"method": "joint", "final_ade_k1": {"mean": 0.25}}],
+        },
+    }
+    table = boards_table(boards).splitlines()
+    assert table[0] == "| method | `a` | `b` |"
+    assert table[2:5] == [  # mean ranks: y 1, finetune 2, x 2 (1 and 3; ties by name)
+        "| y | - | 0.200 (1) * |",
+        "| finetune | 0.200 (2) | 0.300 (2) |",
+        "| x | 0.100 (1) * | 0.400 (3) |",
+    ]
+    assert (
+        "- `b`: x minus finetune, 30 paired seeds: +0.1000 m [+0.0500, +0.1500]; finetune is better"
+        in table
+    )
+    assert "- `b`: joint 0.250" in table
