@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from c2inet.errors import InputError
+from c2inet.significance import paired
 from sim.experiment import ExperimentConfig
 from sim.experiment.sweep import SweepConfig, run_sweep
 from sim.studies.base import Study, register
@@ -20,7 +21,8 @@ from viz.figures import study_figure
 
 ETH_UCY = "eth_ucy_univ,eth,zara1,zara2,hotel"  # the paper's order U-E-Z1-Z2-H
 C2INET = "c2inet-online"
-OFF = {  # one switch a row, then the paper's last row: its composite, labelled as one
+OFF = {  # one switch a row, the queue's terms let through to the encoder (issue 43), then the
+    # paper's last row: its composite, labelled as one
     "full": {},
     "no queue (Eq 17 and the anchors off)": {
         C2INET: {"eq17": False, "distill_decoder": False, "distill_encoder": False}
@@ -30,6 +32,9 @@ OFF = {  # one switch a row, then the paper's last row: its composite, labelled 
     "no weight optimisation (Eq 9)": {C2INET: {"weight_opt": False}},
     "no divergence": {C2INET: {"divergence": False}},
     "no pruning": {C2INET: {"pruning": False}},
+    "mechanism connected (C's KL and MI floor reach the shared encoder)": {
+        "model": {"c_detached": False}
+    },
     "composite: no weight optimisation, divergence or KL of Z (the paper's last row)": {
         C2INET: {"weight_opt": False, "divergence": False},
         "model": {"beta_z": 0.0},
@@ -105,7 +110,9 @@ def summarise_study(study: Preset, entries: list[tuple[str, ExperimentConfig, di
                         "avg_seen_fde",
                         "avg_seen_fde_std",
                         "forgetting_final_ade",
+                        "final_ade_per_seed",
                     )
+                    if key in m
                 },
             }
         )
@@ -131,6 +138,16 @@ def order_table(summary: dict) -> list[str]:
     return [*lines, ""]
 
 
+def paired_text(row: dict, first: dict) -> str:
+    """``row`` minus ``first`` over the same seeds: the final ADE's mean difference, its 95 %
+    interval and p; a dash for the first row itself or with one seed."""
+    if row is first or "final_ade_per_seed" not in row or len(row["final_ade_per_seed"]) < 2:
+        return "-"
+    result = paired(row["final_ade_per_seed"], first["final_ade_per_seed"])
+    low, high = result.interval
+    return f"{result.difference:+.4f} [{low:+.4f}, {high:+.4f}], p = {result.p_value:.3f}"
+
+
 def study_markdown(summary: dict) -> str:
     lines = [f"# {summary['study']}", "", f"The paper: {summary['paper']}.", ""]
     if summary.get("by") == "order":
@@ -138,7 +155,9 @@ def study_markdown(summary: dict) -> str:
     lines += [
         "Cells: ADE/FDE in metres averaged over the tasks seen so far after each task, mean over "
         "seeds (± std of the final average); in brackets the change of the final ADE against the "
-        "first row of its curriculum.",
+        "first row of its curriculum. The last column pairs each seed's final ADE with the first "
+        "row's on the same seed and data: the mean difference, its 95 % interval and the paired "
+        "t-test's p (a difference whose interval holds 0 is within the seed spread).",
         "",
     ]
     scenarios = dict.fromkeys(r["scenario"] for r in summary["rows"])
@@ -146,8 +165,8 @@ def study_markdown(summary: dict) -> str:
         rows = [r for r in summary["rows"] if r["scenario"] == scenario]
         labels = rows[0]["labels"]
         lines += [f"## {scenario}", ""]
-        lines.append("| variant | " + " | ".join(labels) + " | forgetting |")
-        lines.append("|---|" + "---|" * (len(labels) + 1))
+        lines.append("| variant | " + " | ".join(labels) + " | forgetting | paired vs first row |")
+        lines.append("|---|" + "---|" * (len(labels) + 2))
         reference = rows[0]["avg_seen_ade"][-1]
         for r in rows:
             cells = [
@@ -159,7 +178,7 @@ def study_markdown(summary: dict) -> str:
             lines.append(
                 f"| {r['variant']} | "
                 + " | ".join(cells)
-                + f" | {r['forgetting_final_ade']:+.3f} |"
+                + f" | {r['forgetting_final_ade']:+.3f} | {paired_text(r, rows[0])} |"
             )
         lines.append("")
     return "\n".join(lines)

@@ -25,6 +25,20 @@ def test_table4_writes_its_table_json_and_figure(tmp_path, capsys):
     assert (tmp_path / "study.png").read_bytes()[:4] == b"\x89PNG"
 
 
+def test_a_study_row_is_paired_with_the_first_rows_seeds():
+    """Table 4's last column: each row's final ADE minus the first row's on the same seeds, with
+    its interval and p; the first row and a one-seed row get a dash."""
+    from sim.studies.paper import paired_text
+
+    full = {"final_ade_per_seed": [0.20, 0.22, 0.21, 0.23]}
+    worse = {"final_ade_per_seed": [0.25, 0.26, 0.27, 0.27]}
+    text = paired_text(worse, full)
+    assert text == "+0.0475 [+0.0323, +0.0627], p = 0.002"
+    assert (
+        paired_text(full, full) == "-" and paired_text({"final_ade_per_seed": [0.2]}, full) == "-"
+    )
+
+
 def test_orders_are_curricula_of_their_own():
     fig10 = PRESETS["fig10"]
     assert len(fig10.scenarios) == 6 and fig10.by == "order"
