@@ -89,6 +89,12 @@ def bench_parser():
         "the second on); cheaper, but it can discard the best trial (docs/runs.md)",
     )
     p.add_argument("--tune-scenario", help="the tuning curriculum (default: the preset's)")
+    p.add_argument(
+        "--tuning-seed",
+        type=bounded_int(0, 2**31 - 1),
+        help="the tuning's own root seed (its sampler, trials and data; default --seed): a "
+        "second tuning of one benchmark, evaluated on the same seeds, shows whether it selects",
+    )
     p.add_argument("--storage", help="an Optuna storage URL shared by trials (default: SQLite)")
     p.add_argument("--out", type=Path, help="the benchmark's folder (default bench/PRESET)")
     p.add_argument(
@@ -134,6 +140,7 @@ def main(argv: list[str] | None = None) -> int:
         args.width,
         args.max_seeds,
         preset.data if preset else {},
+        args.tuning_seed,
     )
     if args.estimate:
         print(estimate_table(bench, estimate_bench(bench, execution_of(args))))

@@ -84,7 +84,9 @@ class BenchConfig:
     stop trials worse than the median so far; ``replay_budget``: scenes every replay method
     keeps (None: each its own default); ``reference_seeds``; ``compare``: the decisive pair,
     given seeds until its interval is narrower than ``width`` metres or it has ``max_seeds``;
-    ``data``: the preset's data sizes (``Preset.data``), under the user's own ``--set data.*``."""
+    ``data``: the preset's data sizes (``Preset.data``), under the user's own ``--set data.*``;
+    ``tuning_seed``: the tuning's root seed (its sampler, trials and data) where it is not the
+    evaluation's, so two tunings of one benchmark can be compared on the same evaluation."""
 
     base: ExperimentConfig
     name: str = "custom"
@@ -98,6 +100,7 @@ class BenchConfig:
     width: float = 0.01
     max_seeds: int = 30
     data: dict[str, Any] = field(default_factory=dict)
+    tuning_seed: int | None = None
     given: dict[str, Any] = field(init=False, compare=False, repr=False)  # the user's --set
 
     def __post_init__(self):
@@ -157,13 +160,21 @@ class BenchConfig:
         first = self.base.specs[0]
         scenario = self.tune_scenario or f"{first.family.name}_{first.label}"
         settings = {s: v for s, v in self.base.settings.items() if s not in self.references}
-        base = replace(self.base, scenario=scenario, methods=self.ranked, settings=settings)
+        base = replace(
+            self.base,
+            scenario=scenario,
+            methods=self.ranked,
+            settings=settings,
+            seed=self.base.seed if self.tuning_seed is None else self.tuning_seed,
+        )
         return TuneConfig(base, self.trials, self.storage, self.prune, study_prefix=self.key())
 
     def key(self) -> str:
         """``NAME-HASH:``: the preset and a hash of everything that decides the trials (the
         tuning curriculum, sizes, settings, budget), so no shared storage mixes benchmarks."""
         tuning = replace(self.base, scenario=self.tune_scenario or self.base.scenario)
+        if self.tuning_seed is not None:
+            tuning = replace(tuning, seed=self.tuning_seed)
         protocol = {
             "scenario": self.base.scenario,
             "tuning": tuning.to_json(),
@@ -202,6 +213,7 @@ class BenchConfig:
             "reference_seeds": self.reference_seeds,
             "storage": self.storage,
             "data": self.data,
+            **({} if self.tuning_seed is None else {"tuning_seed": self.tuning_seed}),
         }
 
 

@@ -106,6 +106,8 @@ def leaderboard(
         "k": base.k,
         "data": base.settings.get("data", {}),
         "trials": bench.trials,
+        "seed": base.seed,
+        "tuning_seed": bench.tuning().base.seed,
         "prune": bench.prune,
         "replay_budget": bench.replay_budget,
         "seeds": base.seeds,
@@ -134,6 +136,12 @@ def _settings_text(settings: dict[str, dict[str, Any]]) -> str:
         for scope, options in settings.items()
         for k, v in options.items()
     )
+
+
+def _tuning_seed_text(board: dict[str, Any]) -> str:
+    """`` (tuning seed N)`` where the tuning had a root seed of its own."""
+    seed = board.get("tuning_seed")
+    return "" if seed is None or seed == board.get("seed") else f" (tuning seed {seed})"
 
 
 def _interval_text(cell: dict[str, Any]) -> str:
@@ -167,7 +175,8 @@ def leaderboard_markdown(board: dict[str, Any]) -> str:
         "",
         f"{sizes}: {board['epochs']} epochs a task at batch {board['batch_scenes']}, K = "
         f"{board['k']}, {board['trials']} Optuna trials a method (its defaults first{pruned}) "
-        f"on `{board['tune_scenario']}` scored on validation data only, then {board['seeds']} "
+        f"on `{board['tune_scenario']}`{_tuning_seed_text(board)} scored on validation data only, "
+        f"then {board['seeds']} "
         f"seeds a method, seed s drawing its own data for every method"
         f"{_data_text(board.get('data', {}))}. `--set`: {given}. "
         f"Ranked by final average ADE of the point prediction (K = 1). Intervals are 95 %; p is "

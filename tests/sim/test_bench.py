@@ -346,6 +346,19 @@ def test_a_shared_storage_keeps_two_benchmarks_apart(tmp_path):
     assert all(len(optuna.load_study(study_name=n, storage=storage).trials) == 1 for n in names)
 
 
+def test_a_tuning_seed_reseeds_the_tuning_alone_under_a_key_of_its_own():
+    """``--tuning-seed``: a second tuning of one benchmark draws its own trials (the sampler
+    and the trials' data follow the tuning's seed) while the evaluation keeps its seeds, so the
+    two tunings' choices are compared on the same evaluation; its studies never share a key."""
+    base = ExperimentConfig("crowd_noise_0.1,0.2", methods=("finetune",), quick=True, seed=3)
+    first, second = BenchConfig(base), BenchConfig(base, tuning_seed=7)
+    assert first.tuning().base.seed == 3 and second.tuning().base.seed == 7
+    assert first.base.seed == second.base.seed == 3
+    assert first.key() != second.key()
+    assert BenchConfig(base, tuning_seed=3).key() == first.key()  # its own seed: the same tuning
+    assert "tuning_seed" not in first.to_json() and second.to_json()["tuning_seed"] == 7
+
+
 def test_every_preset_tunes_on_three_tasks_or_more_outside_what_it_evaluates():
     """The tuning curriculum shares no value with the evaluated one (ETH-UCY, with no other
     real recording, tunes on held-out training scenes of its own: it has no validation split,
