@@ -48,7 +48,7 @@ def parser(
         nargs="+",
         metavar="WHAT",
         help="print what exists and stop: families, methods, backbones, generators, studies, "
-        "or knobs FAMILY",
+        "loggers, or knobs FAMILY",
     )
     p.add_argument(
         "--seed", type=bounded_int(0, 2**63 - 1), default=0, help="root seed (default 0)"
@@ -265,12 +265,14 @@ def registries() -> dict[str, Any]:
     from c2inet.methods.base import REGISTRY as methods
     from sim.generators.base import REGISTRY as generators
     from sim.studies.base import REGISTRY as studies  # the studies import the engine: late
+    from viz.loggers import REGISTRY as loggers
 
     return {
         "methods": methods,
         "backbones": backbones,
         "generators": generators,
         "studies": studies,
+        "loggers": loggers,
     }
 
 

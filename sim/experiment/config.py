@@ -15,7 +15,7 @@ from typing import Any
 
 from c2inet.backbones.base import REGISTRY as BACKBONE_REGISTRY
 from c2inet.device import resolve_device
-from c2inet.errors import InputError, did_you_mean
+from c2inet.errors import InputError
 from c2inet.files import check_path_length
 from c2inet.methods.base import get_method
 from c2inet.model import ModelConfig
@@ -25,7 +25,7 @@ from sim.experiment.backends import BACKENDS, check_ray_address
 from sim.experiment.defaults import DEFAULT_METHODS
 from sim.scenario import DomainSpec, parse_scenario
 from viz.live import viewer_url
-from viz.loggers import LOGGERS, WANDB_MODES
+from viz.loggers import check_spec
 
 SHARED_SCOPES = ("data", "model", "train")  # settings scopes besides the methods' own
 # options that have a flag of their own: a --set of them would be silently overridden
@@ -161,23 +161,14 @@ class Execution:
     workers: int = os.cpu_count() or 1
     cache: Path = Path(".cache/domains")
     rerun: str | None = None
-    loggers: tuple[str, ...] = ()  # csv, tensorboard, mlflow[=URI], wandb[=online]: per job
+    loggers: tuple[str, ...] = ()  # csv, tensorboard, mlflow[=URI], wandb[=online] (viz.loggers)
     memory_budget: float | None = None  # GB one domain's generation may take (None: no limit)
 
     def __post_init__(self):
         object.__setattr__(self, "loggers", tuple(self.loggers))
         object.__setattr__(self, "cache", Path(self.cache))
         for spec in self.loggers:
-            name, equals, uri = spec.partition("=")
-            if name not in LOGGERS:
-                hint = did_you_mean(name, LOGGERS)
-                raise InputError(f"--logger {name!r}: unknown{hint} (known: {', '.join(LOGGERS)})")
-            if name == "wandb" and equals and uri not in WANDB_MODES:
-                raise InputError(f"--logger {spec[:80]!r}: W&B's mode is offline or online")
-            if equals and (name not in ("mlflow", "wandb") or not uri):
-                raise InputError(
-                    f"--logger {spec[:80]!r}: only mlflow=URI and wandb=online take a value"
-                )
+            check_spec(spec)
         if self.backend not in BACKENDS:
             raise InputError(f"--backend {self.backend!r}: expected one of {', '.join(BACKENDS)}")
         if self.rerun is not None and self.rerun != "spawn":

@@ -6,6 +6,7 @@ import numpy as np
 
 from sim.generators.crowd import CrowdGenerator
 from sim.studies.base import Study
+from viz.loggers import Logger
 
 
 class SeedlessCrowd(CrowdGenerator, register=False):
@@ -26,3 +27,29 @@ class Echo(Study):
 
 ECHO = Echo()
 NOT_A_STUDY = object()
+
+
+class EventCount(Logger):
+    """A logger of another package: how many events a job sent."""
+
+    name = "count"
+    title = "the number of events in count.txt"
+
+    def __init__(self, folder, epochs, tasks, **options):
+        self.path, self.events = folder / "count.txt", 0
+
+    def __call__(self, event, data):
+        self.events += 1
+
+    def close(self):
+        self.path.write_text(str(self.events))
+
+
+class Silent(EventCount):
+    """A logger that writes nothing: the checker must fail it."""
+
+    name = "silent"
+    title = "logs nothing"
+
+    def close(self):
+        pass

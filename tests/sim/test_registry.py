@@ -14,8 +14,16 @@ from sim.cli import listing
 from sim.generators.base import REGISTRY as GENERATORS
 from sim.generators.checker import GeneratorCheckError, check_generator
 from sim.studies.base import REGISTRY as STUDIES
+from viz.loggers import REGISTRY as LOGGERS
+from viz.loggers.checker import LoggerCheckError, check_logger
 
-KINDS = {"method": METHODS, "backbone": BACKBONES, "generator": GENERATORS, "study": STUDIES}
+KINDS = {
+    "method": METHODS,
+    "backbone": BACKBONES,
+    "generator": GENERATORS,
+    "study": STUDIES,
+    "logger": LOGGERS,
+}
 KIND_GROUPS = {registry.group for registry in KINDS.values()}
 
 
@@ -30,7 +38,13 @@ def entry_points(monkeypatch):
         return given.get(group, []) if group in KIND_GROUPS else real(**selection)
 
     monkeypatch.setattr(importlib.metadata, "entry_points", entry_points)
-    with METHODS.isolated(), BACKBONES.isolated(), GENERATORS.isolated(), STUDIES.isolated():
+    with (
+        METHODS.isolated(),
+        BACKBONES.isolated(),
+        GENERATORS.isolated(),
+        STUDIES.isolated(),
+        LOGGERS.isolated(),
+    ):
         for registry in KINDS.values():
             registry.skipped.clear()
         yield given
@@ -71,3 +85,26 @@ def test_a_plugin_study_is_discovered_and_a_wrong_object_is_one_warning(entry_po
     assert "study plugin 'nothing' skipped: <object object" in capsys.readouterr().err
     STUDIES.discover()
     assert "skipped" not in capsys.readouterr().err  # once a process
+
+
+def test_a_plugin_logger_is_discovered_listed_used_and_held_to_the_checker(entry_points, tmp_path):
+    """A logger is one file (or an entry point): found, listed, accepted by ``--logger``, made
+    for a job; one that writes nothing fails the checker."""
+    from sim.experiment.config import Execution
+    from viz.loggers import make_loggers
+
+    entry_points["viz.loggers"] = [
+        EntryPoint("count", "plugin_parts:EventCount", "viz.loggers"),
+        EntryPoint("silent", "plugin_parts:Silent", "viz.loggers"),
+    ]
+    lines = listing(["loggers"], []).splitlines()
+    assert any(line.split()[0] == "count" and "number of events" in line for line in lines)
+    assert Execution(loggers=("count",)).loggers == ("count",)  # --logger count is accepted
+    (logger,) = make_loggers(("count",), tmp_path / "job", 2, ["a"])
+    (tmp_path / "job").mkdir()
+    logger("epoch_end", {"task": 0, "epoch": 0})
+    logger.close()
+    assert (tmp_path / "job" / "count.txt").read_text() == "1"
+    assert check_logger(LOGGERS.get("count"), tmp_path / "a")
+    with pytest.raises(LoggerCheckError, match="'silent': logged a job and wrote nothing"):
+        check_logger(LOGGERS.get("silent"), tmp_path / "b")

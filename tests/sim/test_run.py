@@ -265,7 +265,10 @@ def test_list_shows_families_methods_and_knobs(capsys):
         (["--scenario", "crowd_noise_0.1", "--set", "train.lrr=1"], "did you mean 'lr'?"),
         (["--scenario", "crowd_noise_0.1", "--logger", "tensorbord"], "did you mean"),
         (["--list", "knobs", "crowd_nois"], "did you mean 'crowd_noise'?"),
-        (["--list", "everything"], "expected families, methods, backbones, generators, studies"),
+        (
+            ["--list", "everything"],
+            "expected families, methods, backbones, generators, studies, loggers",
+        ),
         ([], "required: --scenario"),
     ],
 )

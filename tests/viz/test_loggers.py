@@ -4,7 +4,9 @@ from pathlib import Path
 
 import pytest
 
+from viz.loggers import REGISTRY as LOGGERS
 from viz.loggers import MLflowLogger, WandbLogger, flat_params, prepare_tracking
+from viz.loggers.checker import check_logger
 
 
 def test_flat_params_name_each_setting_by_its_scope():
@@ -96,3 +98,11 @@ def test_an_unreachable_tracking_server_is_one_error_after_a_bounded_wait(tmp_pa
     with pytest.raises(InputError, match=r"--logger mlflow=http://127.0.0.1:1: cannot use"):
         prepare_tracking(("mlflow=http://127.0.0.1:1",), tmp_path / "runs" / "r")
     assert time.monotonic() - started < 30
+
+
+@pytest.mark.parametrize("name", LOGGERS.names())
+def test_every_registered_logger_passes_the_checker(name, tmp_path, monkeypatch):
+    """Each logger, as the registry finds it, takes a job's events and writes its own files."""
+    monkeypatch.setenv("WANDB_SILENT", "true")
+    written = check_logger(LOGGERS.get(name), tmp_path)
+    assert all(tmp_path in p.parents for p in written)
