@@ -22,7 +22,7 @@ import numpy as np
 import torch
 
 from c2inet.methods.base import get_method
-from c2inet.model import ModelConfig
+from c2inet.model_config import ModelConfig
 from c2inet.significance import paired
 from c2inet.trainer import ContinualTrainer, Task, TrainConfig
 from sim.domains import build_domain

@@ -15,9 +15,10 @@ import time
 
 import torch
 
+from c2inet.gaussians import GaussianMixture
 from c2inet.methods.base import get_method
-from c2inet.model import ModelConfig
-from c2inet.prior import GaussianMixture, PriorQueue, QueueConfig
+from c2inet.model_config import ModelConfig
+from c2inet.prior import PriorQueue, QueueConfig
 from c2inet.trainer import ContinualTrainer, Task, TrainConfig
 from sim.domains import build_domain
 from sim.scenario import parse_scenario

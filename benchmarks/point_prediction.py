@@ -17,10 +17,12 @@ import numpy as np
 import torch
 
 from c2inet.batch import batches
+from c2inet.evaluation import sample_predictions
 from c2inet.methods.base import get_method
 from c2inet.metrics import displacement_errors
-from c2inet.model import ModelConfig, to_positions
-from c2inet.trainer import ContinualTrainer, TrainConfig, sample_predictions
+from c2inet.model import to_positions
+from c2inet.model_config import ModelConfig
+from c2inet.trainer import ContinualTrainer, TrainConfig
 from sim import learner_tasks
 
 METHODS = ("finetune", "c2inet-online", "gcrl", "pecnet")

@@ -26,7 +26,7 @@ import torch
 
 from c2inet.errors import InputError
 from c2inet.methods.base import Method, discover, get_method
-from c2inet.model import ModelConfig
+from c2inet.model_config import ModelConfig
 from c2inet.trainer import ContinualTrainer, Task, TrainConfig
 from sim.domains import build_domain
 from sim.experiment.config import parse_settings

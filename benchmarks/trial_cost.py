@@ -19,7 +19,7 @@ import numpy as np
 import torch
 
 from c2inet.methods.base import get_method
-from c2inet.model import ModelConfig
+from c2inet.model_config import ModelConfig
 from c2inet.trainer import ContinualTrainer, TrainConfig
 from sim import learner_tasks
 from sim.experiment.tuning import TRIAL_TRAIN

@@ -12,7 +12,7 @@ import torch
 
 from c2inet.batch import make_batch
 from c2inet.data import Windows
-from c2inet.prior import GaussianMixture, gaussian_sample, responsibilities
+from c2inet.gaussians import GaussianMixture, gaussian_sample, responsibilities
 
 if TYPE_CHECKING:
     from c2inet.model import C2INetModel

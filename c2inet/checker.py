@@ -27,7 +27,7 @@ from torch.utils._device import DeviceContext
 
 from c2inet.data import Windows
 from c2inet.methods.base import Method
-from c2inet.model import ModelConfig
+from c2inet.model_config import ModelConfig
 from c2inet.trainer import TRAIN_SPACE, ContinualTrainer, Result, Task, TrainConfig
 
 HOOKS = (

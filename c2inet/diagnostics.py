@@ -21,7 +21,7 @@ import torch
 from c2inet.batch import make_batch
 from c2inet.data import Windows
 from c2inet.device import model_device, seeded
-from c2inet.prior import (
+from c2inet.gaussians import (
     gaussian_log_prob,
     gaussian_sample,
     kl_standard_normal,

@@ -16,8 +16,9 @@ import numpy as np
 
 from c2inet.data import Windows
 from c2inet.diagnostics import observed_features
+from c2inet.evaluation import evaluate, sample_predictions
 from c2inet.methods.base import Method, TaskContext
-from c2inet.trainer import TrainConfig, evaluate, sample_predictions, start_training, train_epoch
+from c2inet.trainer import TrainConfig, start_training, train_epoch
 
 # observed_features' mean speed, heading change, agent count and smallest neighbour distance
 FEATURES = [2, 5, 6, 9]

@@ -8,8 +8,8 @@ from typing import Any
 import numpy as np
 
 from c2inet.data import Windows
+from c2inet.evaluation import sample_predictions
 from c2inet.metrics import best_sample, displacement_errors
-from c2inet.trainer import sample_predictions
 from viz.loggers import epoch_step, task_step
 from viz.recording import RunRecorder, extent
 

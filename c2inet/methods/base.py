@@ -22,7 +22,8 @@ import torch
 from c2inet.batch import Batch
 from c2inet.data import Windows
 from c2inet.device import model_device
-from c2inet.model import LossOutput, ModelConfig, Predictor
+from c2inet.model import LossOutput, Predictor
+from c2inet.model_config import ModelConfig
 from c2inet.options import Choice, Tunable, build
 from c2inet.registry import Registry
 

@@ -9,7 +9,8 @@ No hooks. Example: ``--methods c2inet-online,c2inet-noqueue``
 import torch
 
 from c2inet.methods.base import Method
-from c2inet.model import C2INET_SPACE, C2INetModel
+from c2inet.model import C2INetModel
+from c2inet.model_config import C2INET_SPACE
 
 
 class C2INetNoQueue(Method):

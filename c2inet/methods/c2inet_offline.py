@@ -22,10 +22,11 @@ import numpy as np
 import torch
 
 from c2inet.errors import InputError
+from c2inet.gaussians import GaussianMixture
 from c2inet.methods.base import TaskContext
 from c2inet.methods.c2inet_online import C2INetOnline, C2INetOptions
 from c2inet.options import require
-from c2inet.prior import GaussianMixture, bounded_task_mass
+from c2inet.prior import bounded_task_mass
 
 
 @dataclass(frozen=True)

@@ -26,10 +26,12 @@ import torch
 
 from c2inet.anchors import Anchors, anchors_from_windows, make_anchors
 from c2inet.batch import make_batch
+from c2inet.gaussians import GaussianMixture, mix, moment_match
 from c2inet.methods.base import Method, TaskContext
-from c2inet.model import C2INET_SPACE, C2INetModel
+from c2inet.model import C2INetModel
+from c2inet.model_config import C2INET_SPACE
 from c2inet.options import require
-from c2inet.prior import GaussianMixture, QueueConfig, mix, moment_match
+from c2inet.prior import QueueConfig
 
 TARGET_COMPONENTS = 256
 

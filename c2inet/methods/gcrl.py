@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import torch
 
 from c2inet.methods.base import Method
-from c2inet.model import LATENT_SPACE, C2INetModel
+from c2inet.model import C2INetModel
+from c2inet.model_config import LATENT_SPACE
 from c2inet.options import require
 from c2inet.prior import LearnablePrior
 

@@ -18,7 +18,7 @@ from c2inet.device import resolve_device
 from c2inet.errors import InputError
 from c2inet.files import check_path_length
 from c2inet.methods.base import get_method
-from c2inet.model import ModelConfig
+from c2inet.model_config import ModelConfig
 from c2inet.options import build
 from c2inet.trainer import TrainConfig
 from sim.experiment.backends import BACKENDS, check_ray_address

@@ -24,15 +24,9 @@ import torch
 
 from c2inet.batch import batches
 from c2inet.diagnostics import diagnose
+from c2inet.evaluation import evaluate, evaluate_all
 from c2inet.methods.base import Method, TaskContext
-from c2inet.trainer import (
-    Task,
-    TrainConfig,
-    evaluate,
-    evaluate_all,
-    start_training,
-    train_step,
-)
+from c2inet.trainer import Task, TrainConfig, start_training, train_step
 
 STEPS = 9  # timed training steps per task, after one to warm up (3 varied by 40 %)
 EPOCH_HOOKS = 2  # epoch hooks timed per task: C2INet fits Eq 8 every second epoch

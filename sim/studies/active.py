@@ -27,9 +27,10 @@ import numpy as np
 
 from c2inet.data import Windows
 from c2inet.errors import InputError
+from c2inet.evaluation import evaluate
 from c2inet.options import check_range
 from c2inet.stream import StreamLearner
-from c2inet.trainer import Task, evaluate
+from c2inet.trainer import Task
 from sim.domains import domain_seed
 from sim.experiment import Execution, ExperimentConfig
 from sim.experiment.cells import cell_identity, run_cells

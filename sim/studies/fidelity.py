@@ -26,7 +26,8 @@ import numpy as np
 from scipy.stats import wasserstein_distance
 
 from c2inet.errors import InputError
-from c2inet.trainer import ContinualTrainer, Task, evaluate
+from c2inet.evaluation import evaluate
+from c2inet.trainer import ContinualTrainer, Task
 from sim.data import Domain
 from sim.experiment import Execution, ExperimentConfig
 from sim.experiment.cells import cell_identity, run_cells

@@ -11,7 +11,8 @@ from c2inet.backbones.stgat import STGAT
 from c2inet.batch import make_batch
 from c2inet.data import Windows
 from c2inet.methods.base import discover
-from c2inet.model import C2INetModel, ModelConfig, Predictor
+from c2inet.model import C2INetModel, Predictor
+from c2inet.model_config import ModelConfig
 
 from toys import toy_windows, turners
 

@@ -13,7 +13,7 @@ import torch
 
 from c2inet.batch import make_batch
 from c2inet.methods.base import TaskContext, get_method
-from c2inet.model import ModelConfig
+from c2inet.model_config import ModelConfig
 from c2inet.trainer import ContinualTrainer, TrainConfig
 
 from toys import turners, turning_tasks
@@ -366,7 +366,7 @@ def test_joint_from_scratch_final_only_trains_once_on_the_union_at_the_last_task
 def test_pecnet_is_scored_at_its_own_point_and_other_models_at_the_mean_of_draws():
     """``ade_k1`` of PECNet is the error of its z = 0 prediction; fine-tuning's that of the mean
     of its samples."""
-    from c2inet.trainer import evaluate, natural_points, sample_predictions
+    from c2inet.evaluation import evaluate, natural_points, sample_predictions
 
     windows = turning_tasks()[0].test
     truth = windows.positions[:, windows.obs_len :].transpose(1, 0, 2)

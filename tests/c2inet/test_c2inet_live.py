@@ -11,10 +11,11 @@ from c2inet.anchors import anchors_from_windows, make_anchors
 from c2inet.batch import make_batch, variety_loss
 from c2inet.data import Windows
 from c2inet.diagnostics import diagnose, mutual_information, probe_accuracy
+from c2inet.gaussians import GaussianMixture
 from c2inet.methods.base import TaskContext, get_method
 from c2inet.methods.c2inet_online import C2INetOptions
-from c2inet.model import ModelConfig
-from c2inet.prior import GaussianMixture, PriorQueue, QueueConfig
+from c2inet.model_config import ModelConfig
+from c2inet.prior import PriorQueue, QueueConfig
 from c2inet.trainer import ContinualTrainer, Task, TrainConfig
 
 from toys import walkers

@@ -13,7 +13,7 @@ from c2inet.device import resolve_device
 from c2inet.diagnostics import diagnose
 from c2inet.errors import InputError
 from c2inet.methods.base import get_method
-from c2inet.model import ModelConfig
+from c2inet.model_config import ModelConfig
 from c2inet.trainer import ContinualTrainer, TrainConfig
 
 LEARNER = Path(c2inet.__file__).parent

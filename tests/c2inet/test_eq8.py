@@ -5,7 +5,8 @@ import torch
 
 from c2inet.eq8 import ClosedForm
 from c2inet.errors import InputError
-from c2inet.prior import GaussianMixture, PriorQueue, QueueConfig, eq8_objective
+from c2inet.gaussians import GaussianMixture
+from c2inet.prior import PriorQueue, QueueConfig, eq8_objective
 
 
 def mixture(k: int, seed: int, spread: float = 1.0) -> GaussianMixture:

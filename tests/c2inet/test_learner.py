@@ -10,7 +10,8 @@ from c2inet.batch import Batch, make_batch
 from c2inet.data import Windows
 from c2inet.errors import InputError
 from c2inet.methods.base import TaskContext, discover, get_method
-from c2inet.model import C2INetModel, ModelConfig, Predictor
+from c2inet.model import C2INetModel, Predictor
+from c2inet.model_config import ModelConfig
 from c2inet.trainer import ContinualTrainer, TrainConfig
 
 from toys import toy_windows, turning_tasks

@@ -124,7 +124,7 @@ def test_the_checker_fails_a_c2inet_whose_queue_prior_cannot_act(monkeypatch):
     import dataclasses
 
     from c2inet import checker
-    from c2inet.model import ModelConfig
+    from c2inet.model_config import ModelConfig
 
     @dataclasses.dataclass
     class EightFreeNats(ModelConfig):

@@ -5,6 +5,7 @@ import pytest
 import torch
 
 from c2inet.data import Windows
+from c2inet.evaluation import VARIANT_METRICS, evaluate
 from c2inet.metrics import (
     average_seen,
     backward_transfer,
@@ -15,7 +16,6 @@ from c2inet.metrics import (
     forgetting_worst,
 )
 from c2inet.report import summarise, summarise_diagnostics, table_rows
-from c2inet.trainer import VARIANT_METRICS, evaluate
 
 
 def test_displacement_errors_by_hand():

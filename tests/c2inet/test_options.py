@@ -6,7 +6,7 @@ import pytest
 
 from c2inet.errors import InputError
 from c2inet.methods.base import discover, get_method
-from c2inet.model import ModelConfig
+from c2inet.model_config import ModelConfig
 from c2inet.options import build
 from c2inet.prior import QueueConfig
 from c2inet.trainer import TrainConfig

@@ -5,11 +5,8 @@ import math
 import pytest
 import torch
 
-from c2inet.prior import (
+from c2inet.gaussians import (
     GaussianMixture,
-    PriorQueue,
-    QueueConfig,
-    bounded_task_mass,
     gaussian_log_prob,
     mix,
     moment_match,
@@ -17,6 +14,7 @@ from c2inet.prior import (
     responsibilities,
     symmetric_kl,
 )
+from c2inet.prior import PriorQueue, QueueConfig, bounded_task_mass
 
 
 def random_mixture(k=4, d=3, seed=0) -> GaussianMixture:

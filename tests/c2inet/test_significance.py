@@ -4,9 +4,9 @@ correction over a board, and how many seeds a paired interval needs."""
 import numpy as np
 import pytest
 
+from c2inet.evaluation import VARIANT_METRICS
 from c2inet.report import compare, comparison_rows, summarise
 from c2inet.significance import holm, interval, interval_width, paired, seeds_to_narrow
-from c2inet.trainer import VARIANT_METRICS
 
 
 def test_the_interval_holds_the_mean_and_widens_with_the_spread():

@@ -7,7 +7,7 @@ import torch
 from c2inet.checker import CHECK_CONFIG
 from c2inet.data import Windows
 from c2inet.methods.base import get_method
-from c2inet.model import ModelConfig
+from c2inet.model_config import ModelConfig
 from c2inet.stream import ShiftDetector, StreamLearner
 from c2inet.trainer import ContinualTrainer
 

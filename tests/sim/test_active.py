@@ -5,7 +5,7 @@ import pytest
 
 from c2inet.checker import CHECK_CONFIG, turning_tasks
 from c2inet.methods.base import get_method
-from c2inet.model import ModelConfig
+from c2inet.model_config import ModelConfig
 from c2inet.stream import StreamLearner
 from sim.experiment import Execution, ExperimentConfig
 from sim.studies import active

@@ -470,7 +470,7 @@ def test_the_estimate_times_a_tasks_steps_with_its_past_and_every_hook():
     from c2inet.data import Windows
     from c2inet.methods.base import TaskContext
     from c2inet.methods.finetune import Finetune
-    from c2inet.model import ModelConfig
+    from c2inet.model_config import ModelConfig
     from c2inet.trainer import TrainConfig, start_training
     from sim.experiment.estimate import task_seconds
 
@@ -512,7 +512,7 @@ def test_the_estimate_times_every_task_on_its_own_scenes():
 
     from c2inet.data import Windows
     from c2inet.methods.finetune import Finetune
-    from c2inet.model import ModelConfig
+    from c2inet.model_config import ModelConfig
     from c2inet.trainer import Task, TrainConfig
     from sim.experiment.estimate import method_seconds
 
