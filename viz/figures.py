@@ -32,11 +32,13 @@ def labelled(note: str | None = None, unit: str = "m"):
         _NOTES.pop()
 
 
-def _unit() -> str:
+def figure_unit() -> str:
+    """The unit of the figures being drawn (``labelled``'s; metres outside it)."""
     return _NOTES[-1][1] if _NOTES else "m"
 
 
-def _save(fig, path: Path) -> Path:
+def save_figure(fig, path: Path) -> Path:
+    """Write ``fig`` to ``path`` (atomically) with the note of ``labelled``, and close it."""
     if _NOTES and _NOTES[-1][0]:
         fig.text(
             0.5,
@@ -87,11 +89,11 @@ def error_matrix(
     ax.set_xlabel("evaluated on task")
     ax.set_ylabel("after training through task")
     if mixed:
-        ax.set_title(f"{name}: ADE ({_unit()}); colour scaled per family, low to high")
+        ax.set_title(f"{name}: ADE ({figure_unit()}); colour scaled per family, low to high")
     else:
-        ax.set_title(f"{name}: ADE ({_unit()})")
-        fig.colorbar(image, ax=ax, label=f"ADE ({_unit()})")
-    return _save(fig, path)
+        ax.set_title(f"{name}: ADE ({figure_unit()})")
+        fig.colorbar(image, ax=ax, label=f"ADE ({figure_unit()})")
+    return save_figure(fig, path)
 
 
 def per_task(name: str, matrix: list[list[float]], labels: list[str], path: Path) -> Path:
@@ -102,10 +104,10 @@ def per_task(name: str, matrix: list[list[float]], labels: list[str], path: Path
         ax.plot(range(j, len(labels)), data[j:, j], marker="o", label=label)
     ax.set_xticks(range(len(labels)), labels)
     ax.set_xlabel("after training through task")
-    ax.set_ylabel(f"ADE ({_unit()})")
+    ax.set_ylabel(f"ADE ({figure_unit()})")
     ax.set_title(f"{name}: per-task ADE")
     ax.legend(fontsize=7, title="task")
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def average_seen(methods: dict[str, dict[str, Any]], labels: list[str], path: Path) -> Path:
@@ -119,9 +121,9 @@ def average_seen(methods: dict[str, dict[str, Any]], labels: list[str], path: Pa
         ax.fill_between(range(len(mean)), mean - std, mean + std, alpha=0.15, color=colour)
     ax.set_xticks(range(len(labels)), [labels[0], *(":" + lab for lab in labels[1:])])
     ax.set_xlabel("after training through task (:x = averaged over the tasks up to x)")
-    ax.set_ylabel(f"average ADE over seen tasks ({_unit()})")
+    ax.set_ylabel(f"average ADE over seen tasks ({figure_unit()})")
     ax.legend(fontsize=8)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def prediction_grid(
@@ -171,7 +173,7 @@ def prediction_grid(
     ]
     fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=8, frameon=False)
     fig.subplots_adjust(bottom=0.6 / fig.get_figheight())
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def _scale_bar(ax) -> None:
@@ -183,230 +185,9 @@ def _scale_bar(ax) -> None:
     length = next(f * power for f in (1, 2, 5, 10) if f * power >= span / 5)
     x, y = x0 + 0.05 * span, y0 + 0.06 * (y1 - y0)
     ax.plot([x, x + length], [y, y], color="black", lw=2)
-    ax.text(x + length / 2, y + 0.02 * (y1 - y0), f"{length:g} {_unit()}", ha="center", fontsize=7)
+    ax.text(
+        x + length / 2, y + 0.02 * (y1 - y0), f"{length:g} {figure_unit()}", ha="center", fontsize=7
+    )
 
 
 # The studies' figures (sim.studies): each takes the study's report.
-
-
-def active_figure(report: dict[str, Any], path: Path) -> None:
-    """Mean and worst held-out ADE against scenes simulated, and the final error per grid value,
-    one line per strategy."""
-    fig, axes = plt.subplots(1, 3, figsize=(15, 3.8))
-    for i, (name, s) in enumerate(report["strategies"].items()):
-        colour = as_matplotlib(method_colour(i))
-        for ax, key in zip(axes[:2], ("mean", "worst"), strict=True):
-            ax.errorbar(
-                report["scenes"], s[key], s[f"{key}_std"], fmt="-o", ms=3, capsize=2, label=name,
-                color=colour,
-            )  # fmt: skip
-        axes[2].plot(report["grid"], s["final_errors"], "-o", ms=3, label=name, color=colour)
-    axes[0].set(xlabel="scenes simulated", ylabel="mean held-out ADE (m)")
-    axes[1].set(xlabel="scenes simulated", ylabel="worst held-out ADE (m)")
-    axes[2].set(xlabel=report["knob"], ylabel="final held-out ADE (m)")
-    axes[0].legend(fontsize=7)
-    fig.suptitle(f"active curriculum on {report['family']} ({report['method']})", fontsize=10)
-    fig.tight_layout()
-    _save(fig, path)
-
-
-def drift_figure(report: dict[str, Any], path: Path) -> None:
-    """Left: mean probe ADE over the stream per method, boundaries marked. Right: each
-    method's error-over-time matrix, as each probe's excess over its best (forgetting shows as
-    colour returning down a column)."""
-    methods = report["methods"]
-    fig, axes = plt.subplots(1, 1 + len(methods), figsize=(5 + 3.6 * len(methods), 3.8))
-    values = report["chunk_values"]
-    ax = axes[0]
-    for i, (name, m) in enumerate(methods.items()):
-        colour = as_matplotlib(method_colour(i))
-        ax.plot(values, np.mean(m["ade"], axis=1), "-o", ms=3, label=name, color=colour)
-        for c in m["given"][1:]:
-            ax.axvline(values[c], color=colour, alpha=0.25, lw=1)
-    ax.set(xlabel=f"{report['knob']} at the stream's position", ylabel="mean probe ADE (m)")
-    ax.set_title(f"boundaries: {report['boundaries']}", fontsize=9)
-    ax.legend(fontsize=7)
-    relative = {
-        name: np.asarray(m["ade"]) / np.min(m["ade"], axis=0) - 1 for name, m in methods.items()
-    }
-    top = max(100 * r.max() for r in relative.values())
-    for ax, name in zip(axes[1:], methods, strict=True):
-        image = ax.imshow(100 * relative[name], aspect="auto", cmap="magma_r", vmin=0, vmax=top)
-        ax.set_xticks(range(len(report["probes"])), [f"{v:g}" for v in report["probes"]])
-        ax.set_yticks(range(len(values)), [f"{v:.2f}" for v in values], fontsize=6)
-        ax.set(xlabel="probe", ylabel="after the chunk at")
-        ax.set_title(name, fontsize=9)
-    fig.colorbar(image, ax=axes[-1], label="ADE above the probe's best (%)")
-    fig.suptitle(f"drift of {report['family']}", fontsize=10)
-    fig.tight_layout()
-    _save(fig, path)
-
-
-def fidelity_figure(report: dict[str, Any], path: Path) -> None:
-    """Top: relative difference of each statistic per pair (the tolerance shaded), transfer
-    errors per pair, and the whole transfer matrix. Bottom: per-scene histograms of each
-    distribution, generated solid and reference dashed, one colour per pair."""
-    pairs = report["pairs"]
-    x = np.arange(len(pairs))
-    labels = [p["domains"][0].rsplit("_", 1)[-1] for p in pairs]
-    colours = plt.get_cmap("viridis")(np.linspace(0, 0.9, len(pairs)))
-    fig, axes = plt.subplots(2, 4, figsize=(18, 8))
-    ax = axes[0, 0]
-    ax.axhspan(-100 * report["tolerance"], 100 * report["tolerance"], color="0.9")
-    for name in pairs[0]["relative"]:
-        ax.plot(x, [100 * p["relative"][name] for p in pairs], "-o", label=name)
-    ax.set(xticks=x, xticklabels=labels, ylabel="generated vs reference (%)")
-    ax.set_title("realised statistics", fontsize=9)
-    ax.legend(fontsize=7)
-    ax = axes[0, 1]
-    if "transfer" in report:
-        for key, style, label in (
-            ("generated_on_reference", "-o", "trained on generated"),
-            ("reference_on_reference", "-s", "trained on reference"),
-            ("cv_on_reference", ":^", "constant velocity"),
-        ):
-            ax.plot(x, [p["transfer"][key] for p in pairs], style, label=label)
-        ax.set(xticks=x, xticklabels=labels, ylabel="ADE on the reference (m)")
-        ax.legend(fontsize=7)
-        ax = axes[0, 2]
-        matrix = np.asarray(report["transfer"]["ade"])
-        image = ax.imshow(matrix, cmap="magma_r")
-        ticks = [
-            t.rsplit("_", 1)[0][:12] + " " + t.rsplit("_", 1)[-1]
-            for t in report["transfer"]["tasks"]
-        ]
-        ax.set_xticks(range(len(ticks)), ticks, rotation=90, fontsize=6)
-        ax.set_yticks(range(len(ticks)), ticks, fontsize=6)
-        ax.set(xlabel="tested on", ylabel="trained on")
-        fig.colorbar(image, ax=ax, label="ADE (m)")
-    axes[0, 1].set_title("transfer to the reference", fontsize=9)
-    axes[0, 2].set_title("transfer matrix", fontsize=9)
-    legend = axes[0, 3]  # the key to the histograms below
-    for label, colour in zip(labels, colours, strict=True):
-        legend.plot([], [], color=colour, label=f"pair {label}")
-    legend.plot([], [], "k-", label="generated")
-    legend.plot([], [], "k--", label="reference")
-    legend.legend(loc="center", fontsize=8, title="histograms below", title_fontsize=8)
-    legend.axis("off")
-    for ax, name in zip(axes[1], pairs[0]["histograms"], strict=True):
-        for pair, colour in zip(pairs, colours, strict=True):
-            histogram = pair["histograms"][name]
-            if histogram is None:
-                continue
-            for side, style in (("generated", "-"), ("reference", "--")):
-                ax.stairs(histogram[side], histogram["edges"], color=colour, linestyle=style)
-        ax.set_title(f"per-scene {name.replace('_', ' ')}", fontsize=9)
-        ax.set_ylabel("scenes")
-    fig.suptitle(f"{report['scenario']} against {report['reference']}", fontsize=10)
-    fig.tight_layout()
-    _save(fig, path)
-
-
-def shift_figure(summary: dict[str, Any], path: Path) -> None:
-    """Per family (columns): forgetting against the knob shift, against the statistics
-    distance, and the transfer gap against the knob shift (rows), one line per method."""
-    families = summary["families"]
-    fig, axes = plt.subplots(3, len(families), figsize=(4.6 * len(families), 9), squeeze=False)
-    for column, family in enumerate(families):
-        rows = family["rows"]
-        for i, method in enumerate(summary["methods"]):
-            colour = as_matplotlib(method_colour(i))
-            lost = [r["methods"][method]["forgetting"] for r in rows]
-            spread = [r["methods"][method]["forgetting_std"] for r in rows]
-            gap = [r["methods"][method]["gap"] for r in rows]
-            shifts = [r["knob_shift"] for r in rows]
-            distance = [r["statistics_distance"] for r in rows]
-            axes[0, column].errorbar(
-                shifts, lost, spread, fmt="-o", ms=3, capsize=2, label=method, color=colour
-            )
-            order = np.argsort(distance)
-            axes[1, column].plot(
-                np.take(distance, order), np.take(lost, order), "-o", ms=3, color=colour
-            )
-            axes[2, column].plot(shifts, gap, "-o", ms=3, color=colour)
-        axes[0, column].set_title(f"{family['family']} from {family['base']:g}", fontsize=9)
-        axes[0, column].set(xlabel=f"{family['knob']} shift", ylabel="forgetting (m)")
-        axes[1, column].set(xlabel="realised-statistics distance", ylabel="forgetting (m)")
-        axes[2, column].set(xlabel=f"{family['knob']} shift", ylabel="transfer gap (m)")
-        for ax in axes[:, column]:
-            ax.axhline(0, color="0.7", lw=0.8)
-    axes[0, 0].legend(fontsize=7)
-    fig.tight_layout()
-    _save(fig, path)
-
-
-def study_figure(summary: dict, path: Path) -> None:
-    """Final average ADE (solid) and FDE (dashed) per variant or per order, one panel per
-    curriculum (variants) or per family (orders)."""
-    rows = summary["rows"]
-    groups: dict[str, list[dict]] = {}
-    for r in rows:
-        key = r["scenario"].rsplit("_", 1)[0] if summary.get("by") == "order" else r["scenario"]
-        groups.setdefault(key, []).append(r)
-    fig, axes = plt.subplots(1, len(groups), figsize=(5 * len(groups), 3.6), squeeze=False)
-    colour = as_matplotlib(method_colour(0))  # the studies' one method, C2INet-online
-    for ax, (key, members) in zip(axes[0], groups.items(), strict=True):
-        names = [m["scenario"] if summary.get("by") == "order" else m["variant"] for m in members]
-        x = range(len(members))
-        for metric, style in (("avg_seen_ade", "-o"), ("avg_seen_fde", "--s")):
-            values = [m[metric][-1] for m in members]
-            errors = [m[f"{metric}_std"][-1] for m in members]
-            ax.errorbar(
-                x, values, errors, fmt=style, capsize=3, label=metric[-3:].upper(), color=colour
-            )
-        ax.set_xticks(
-            list(x),
-            [n.replace("eth_ucy_", "").replace("crowd_radius_", "r ") for n in names],
-            rotation=20,
-            ha="right",
-            fontsize=8,
-        )
-        ax.set_ylabel("final average over tasks (m)")
-        ax.set_title(key, fontsize=9)
-        ax.legend(fontsize=8)
-    fig.suptitle(summary["study"], fontsize=10)
-    fig.tight_layout()
-    _save(fig, path)
-
-
-def leaderboard_figure(board: dict[str, Any], path: Path) -> None:
-    """The benchmark's ranking: final average ADE of the point prediction and final forgetting,
-    each a point with its 95 % interval, one row per method in rank order (* p < alpha)."""
-    entries = board["entries"]
-    names = [e["method"] for e in entries]
-    rows = np.arange(len(entries))
-    bases = sorted({name.split(",")[0] for name in names})  # a method's test rules share its colour
-    reference = next((e for e in entries if e["method"] == board["reference"]), None)
-    fig, axes = plt.subplots(1, 2, figsize=(11, 0.35 * len(entries) + 1.6), sharey=True)
-    for ax, key, title in (
-        (axes[0], "final_ade_k1", "final average ADE, K = 1 (m)"),
-        (axes[1], "forgetting_final_ade_k1", "final forgetting, K = 1 (m)"),
-    ):
-        for row, e in zip(rows, entries, strict=True):
-            mean, bounds = e[key]["mean"], e[key]["interval"] or [e[key]["mean"]] * 2
-            colour = as_matplotlib(method_colour(bases.index(e["method"].split(",")[0])))
-            ax.errorbar(
-                mean,
-                row,
-                xerr=[[mean - bounds[0]], [bounds[1] - mean]],
-                fmt="o",
-                color=colour,
-                capsize=3,
-            )
-            if key == "final_ade_k1" and e[key]["significant"]:
-                ax.annotate("*", (bounds[1], row), xytext=(4, -4), textcoords="offset points")
-        ax.set_xlabel(title)
-        ax.grid(axis="x", color="0.9")
-        if reference is not None:  # the line every paired test compares with
-            ax.axvline(reference[key]["mean"], color="0.5", lw=0.8, ls="--")
-    axes[1].axvline(0, color="0.7", lw=0.8)
-    axes[0].set_yticks(rows, names)
-    axes[0].invert_yaxis()
-    fig.suptitle(
-        f"{board['scenario']}: {board['trials']} trials a method, {board['seeds']} seeds "
-        f"(bars: 95 % intervals of the mean; * p < {board['alpha']} in a paired test against "
-        f"{board['reference']}{', Holm-adjusted' if board.get('correction') else ''})",
-        fontsize=9,
-    )
-    fig.tight_layout()
-    _save(fig, path)

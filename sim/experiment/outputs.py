@@ -34,13 +34,8 @@ from c2inet.files import (
     write_atomic,
     write_text_atomic,
 )
-from c2inet.report import (
-    compare,
-    markdown_report,
-    matrix_csv,
-    summarise,
-    summarise_diagnostics,
-)
+from c2inet.report import compare, matrix_csv, summarise, summarise_diagnostics
+from c2inet.report_markdown import markdown_report
 from sim.data import SPLITS
 from sim.experiment.folders import MARKER, TRUTH_PART, record_written
 from viz.cli import config_path

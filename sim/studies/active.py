@@ -39,7 +39,7 @@ from sim.generators import child_seed
 from sim.scenario import DomainSpec
 from sim.studies.base import Study, register
 from viz.cli import bounded_int
-from viz.figures import active_figure
+from viz.study_figures import active_figure
 
 STRATEGIES = ("error", "relative", "spread", "fixed", "random")
 

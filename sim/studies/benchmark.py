@@ -65,7 +65,7 @@ from sim.studies.presets import (  # noqa: F401  (the protocol, exported with th
     TRIALS,
     Preset,
 )
-from viz.figures import leaderboard_figure
+from viz.study_figures import leaderboard_figure
 
 # what the leaderboard never reads, so evaluation jobs skip it (as tuning trials do)
 LEAN = TRIAL_TRAIN

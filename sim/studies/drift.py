@@ -33,7 +33,7 @@ from sim.generators import child_seed
 from sim.scenario import DomainSpec
 from sim.studies.base import Study, register
 from viz.cli import bounded_float, bounded_int
-from viz.figures import drift_figure
+from viz.study_figures import drift_figure
 
 BOUNDARIES = ("detect", "none", "chunks")
 DEFAULT_METHODS = "finetune,ewc,derpp,c2inet-online"

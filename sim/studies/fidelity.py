@@ -35,7 +35,7 @@ from sim.experiment.curriculum import experiment_tasks
 from sim.scenario import parse_scenario
 from sim.stats import PROFILES, realised_summary, relative_difference, scene_profiles
 from sim.studies.base import Study, register
-from viz.figures import fidelity_figure
+from viz.study_figures import fidelity_figure
 
 TOLERANCE = 0.10  # relative difference of a statistic that still counts as matched
 TRANSFER_TARGET = 1.2  # generated-trained over reference-trained error on the reference

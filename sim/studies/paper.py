@@ -17,7 +17,7 @@ from c2inet.significance import paired
 from sim.experiment import ExperimentConfig
 from sim.experiment.sweep import SweepConfig, run_sweep
 from sim.studies.base import Study, register
-from viz.figures import study_figure
+from viz.study_figures import study_figure
 
 ETH_UCY = "eth_ucy_univ,eth,zara1,zara2,hotel"  # the paper's order U-E-Z1-Z2-H
 C2INET = "c2inet-online"

@@ -28,7 +28,7 @@ from sim.experiment.sweep import SweepConfig, run_sweep
 from sim.scenario import DomainSpec, parse_scenario
 from sim.stats import relative_difference
 from sim.studies.base import Study, register
-from viz.figures import shift_figure
+from viz.study_figures import shift_figure
 
 DEFAULT_METHODS = "finetune,ewc,derpp,c2inet-online"
 COUNTS = ("overlaps", "crashes")  # statistics that count events rather than measure motion
