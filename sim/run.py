@@ -19,8 +19,8 @@ from sim.cli import (
     experiment_options,
     parse,
     parser,
-    resolved_config,
 )
+from sim.config_file import resolved_config
 from viz.cli import guarded
 from viz.serve import how_to_open
 

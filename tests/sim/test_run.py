@@ -490,7 +490,7 @@ def test_a_config_file_that_never_ends_or_sends_data_away_is_refused_or_trimmed(
     import os
 
     from c2inet.errors import InputError
-    from sim.cli import read_config
+    from sim.config_file import read_config
 
     fifo = tmp_path / "fifo.toml"
     os.mkfifo(fifo)
