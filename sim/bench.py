@@ -124,7 +124,9 @@ def main(argv: list[str] | None = None) -> int:
         args.scenario = preset.scenario
     out = args.out or Path("bench") / (args.preset or "custom")
     from sim.experiment import ExperimentConfig  # the engine loads once there is work
-    from sim.studies.benchmark import BenchConfig, estimate_bench, estimate_table, run_bench
+    from sim.studies.bench_config import BenchConfig
+    from sim.studies.bench_estimate import estimate_bench, estimate_table
+    from sim.studies.benchmark import run_bench
     from sim.studies.leaderboard import leaderboard_markdown
 
     bench = BenchConfig(

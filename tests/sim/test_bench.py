@@ -14,7 +14,9 @@ from sim.experiment import ExperimentConfig
 from sim.experiment.config import Execution, Job
 from sim.experiment.jobs import JobResult, prepare
 from sim.experiment.tuning import TuneConfig, run_tuning, trial_seconds, validation_inputs
-from sim.studies.benchmark import BATCH, PRESETS, BenchConfig, estimate_bench, estimate_table
+from sim.studies.bench_config import BenchConfig
+from sim.studies.bench_estimate import estimate_bench, estimate_table
+from sim.studies.benchmark import BATCH, PRESETS
 
 BAD_LR = 1e-5  # a default that barely trains in two epochs
 
@@ -282,7 +284,7 @@ def test_the_benchmark_estimate_times_a_trial_as_tuning_runs_it_and_adds_every_j
     trials skip switched off, a job on the evaluated curriculum; the totals count every trial of
     every tuned method and every seed, and the wall time shares them over the jobs."""
     from sim.experiment.estimate import lanes_seconds
-    from sim.studies import benchmark as bench_module
+    from sim.studies import bench_estimate as bench_module
 
     timed = []
 
@@ -315,7 +317,7 @@ def test_the_benchmark_estimate_times_a_trial_as_tuning_runs_it_and_adds_every_j
 
 
 def test_the_estimate_flag_prints_the_cost_and_writes_nothing(tmp_path, capsys, monkeypatch):
-    from sim.studies import benchmark as bench_module
+    from sim.studies import bench_estimate as bench_module
 
     monkeypatch.setattr(
         bench_module, "job_seconds", lambda config, tasks: dict.fromkeys(config.methods, 1.0)

@@ -1,0 +1,173 @@
+"""The fair benchmark's configuration: what is evaluated, how it is tuned, its key (so a shared
+storage never mixes two benchmarks), and how many seeds each method gets."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+from c2inet.errors import InputError
+from c2inet.methods.base import get_method
+from c2inet.report import REFERENCE
+from sim.experiment.config import ExperimentConfig
+from sim.experiment.tuning import TRIAL_TRAIN, TuneConfig
+from sim.scenario import parse_scenario
+from sim.studies.presets import BATCH, REFERENCE_SEEDS, REPLAY_BUDGET, SEEDS, TRIALS
+
+# what the leaderboard never reads, so evaluation jobs skip it (as tuning trials do)
+LEAN = TRIAL_TRAIN
+
+
+def references(methods: tuple[str, ...]) -> tuple[str, ...]:
+    """The methods that are references, not competitors: those that see old tasks' data."""
+    return tuple(m for m in methods if get_method(m).sees_old_tasks)
+
+
+@dataclass(frozen=True)
+class BenchConfig:
+    """``base``: the evaluation (scenario, methods, ``seeds`` of every ranked method, sizes,
+    ``--set``; the protocol's batch unless ``--set train.batch_scenes``); ``name``: the preset
+    (or ``custom``); ``tune_scenario``: the tuning curriculum; ``trials`` per method; ``prune``:
+    stop trials worse than the median so far; ``replay_budget``: scenes every replay method
+    keeps (None: each its own default); ``reference_seeds``; ``compare``: the decisive pair,
+    given seeds until its interval is narrower than ``width`` metres or it has ``max_seeds``;
+    ``data``: the preset's data sizes (``Preset.data``), under the user's own ``--set data.*``;
+    ``tuning_seed``: the tuning's root seed (its sampler, trials and data) where it is not the
+    evaluation's, so two tunings of one benchmark can be compared on the same evaluation."""
+
+    base: ExperimentConfig
+    name: str = "custom"
+    tune_scenario: str | None = None
+    trials: int = TRIALS
+    storage: str | None = None
+    replay_budget: int | None = REPLAY_BUDGET
+    prune: bool = False
+    reference_seeds: int = REFERENCE_SEEDS
+    compare: tuple[str, ...] = ()
+    width: float = 0.01
+    max_seeds: int = 30
+    data: dict[str, Any] = field(default_factory=dict)
+    tuning_seed: int | None = None
+    given: dict[str, Any] = field(init=False, compare=False, repr=False)  # the user's --set
+
+    def __post_init__(self):
+        object.__setattr__(self, "compare", tuple(self.compare))
+        object.__setattr__(self, "given", self.base.settings)
+        if REFERENCE not in self.ranked:
+            raise InputError(
+                f"methods: the board tests every method against {REFERENCE}; include it"
+            )
+        if self.reference_seeds < 1:
+            raise InputError(f"reference seeds must be at least 1, got {self.reference_seeds}")
+        if self.compare:
+            if len(self.compare) != 2 or len(set(self.compare)) != 2:
+                raise InputError(f"--compare {','.join(self.compare)}: name two methods")
+            for method in self.compare:
+                if method not in self.base.methods or method in references(self.base.methods):
+                    raise InputError(f"--compare: {method!r} is not a ranked method of this run")
+        if not 0 < self.width <= 1:
+            raise InputError(f"--width {self.width:g}: expected metres in (0, 1]")
+        if self.max_seeds < self.base.seeds:
+            raise InputError(f"--max-seeds {self.max_seeds}: below --seeds {self.base.seeds}")
+        if self.tune_scenario is not None:
+            tuning = parse_scenario(self.tune_scenario, list(self.base.scenarios_dir))
+            if len(tuning) < 3:
+                raise InputError(
+                    f"--tune-scenario {self.tune_scenario!r}: {len(tuning)} task(s); tuning "
+                    "needs three or more, or no method's care for old tasks can matter"
+                )
+        settings = dict(self.base.settings)
+        settings["train"] = {"batch_scenes": BATCH, **settings.get("train", {})}
+        if self.data:
+            settings["data"] = {**self.data, **settings.get("data", {})}
+        if self.replay_budget is not None:
+            if self.replay_budget < 1:
+                raise InputError(
+                    f"replay budget must be at least 1 scene, got {self.replay_budget}"
+                )
+            tasks = len(self.base.specs)
+            for name in self.base.methods:
+                options = get_method(name).replay_options(self.replay_budget, tasks)
+                if options:
+                    settings[name] = {**options, **settings.get(name, {})}
+        if "joint-scratch" in self.base.methods:  # its one meaningful row: trained once
+            settings["joint-scratch"] = {"final_only": True, **settings.get("joint-scratch", {})}
+        object.__setattr__(self, "base", replace(self.base, settings=settings))
+
+    @property
+    def references(self) -> tuple[str, ...]:
+        return references(self.base.methods)
+
+    @property
+    def ranked(self) -> tuple[str, ...]:
+        return tuple(m for m in self.base.methods if m not in self.references)
+
+    def tuning(self) -> TuneConfig:
+        """The tuning of every ranked method, its studies named by this benchmark's key."""
+        first = self.base.specs[0]
+        scenario = self.tune_scenario or f"{first.family.name}_{first.label}"
+        settings = {s: v for s, v in self.base.settings.items() if s not in self.references}
+        base = replace(
+            self.base,
+            scenario=scenario,
+            methods=self.ranked,
+            settings=settings,
+            seed=self.base.seed if self.tuning_seed is None else self.tuning_seed,
+        )
+        return TuneConfig(base, self.trials, self.storage, self.prune, study_prefix=self.key())
+
+    def key(self) -> str:
+        """``NAME-HASH:``: the preset and a hash of everything that decides the trials (the
+        tuning curriculum, sizes, settings, budget), so no shared storage mixes benchmarks."""
+        tuning = replace(self.base, scenario=self.tune_scenario or self.base.scenario)
+        if self.tuning_seed is not None:
+            tuning = replace(tuning, seed=self.tuning_seed)
+        protocol = {
+            "scenario": self.base.scenario,
+            "tuning": tuning.to_json(),
+            "trials": self.trials,
+            "prune": self.prune,
+        }
+        text = json.dumps(protocol, sort_keys=True, default=str)
+        return f"{self.name}-{hashlib.sha256(text.encode()).hexdigest()[:12]}:"
+
+    def sizes(self) -> str:
+        """``quick``, ``reduced`` (any size below the protocol's) or ``protocol``."""
+        if self.base.quick:
+            return "quick"
+        full = ExperimentConfig(self.base.scenario, self.base.methods[:1])
+        train = self.base.settings.get("train", {})
+        smaller = (
+            self.base.epochs < full.epochs
+            or self.base.k < full.k
+            or self.base.seeds < SEEDS
+            or self.trials < TRIALS
+            or self.reference_seeds < REFERENCE_SEEDS
+            or train.get("batch_scenes", BATCH) != BATCH
+        )
+        return "reduced" if smaller else "protocol"
+
+    def to_json(self) -> dict[str, Any]:
+        """What a resumed benchmark must share with the one it continues (the decisive pair may
+        be added or changed on a resume: it only adds seeds to two methods)."""
+        return {
+            "base": self.base.to_json(),
+            "name": self.name,
+            "tune_scenario": self.tune_scenario,
+            "trials": self.trials,
+            "replay_budget": self.replay_budget,
+            "prune": self.prune,
+            "reference_seeds": self.reference_seeds,
+            "storage": self.storage,
+            "data": self.data,
+            **({} if self.tuning_seed is None else {"tuning_seed": self.tuning_seed}),
+        }
+
+
+def seed_count(bench: BenchConfig, method: str) -> int:
+    """The seeds a method is evaluated on before the decisive pair's extra ones."""
+    if method in references(bench.base.methods):
+        return min(bench.reference_seeds, bench.base.seeds)
+    return bench.base.seeds

@@ -1,0 +1,68 @@
+"""What a benchmark will cost before it runs (``sim.bench --estimate``, and the line a board
+prints as it starts), timed on this machine by ``sim.experiment.estimate``."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import torch
+
+from sim.experiment.config import Execution
+from sim.experiment.estimate import describe, job_seconds, lanes_seconds
+from sim.experiment.jobs import prepare
+from sim.experiment.sweep import layered
+from sim.experiment.tuning import TRIAL_TRAIN, search_space, validation_inputs
+from sim.studies.bench_config import LEAN, BenchConfig, seed_count
+
+
+def estimate_bench(bench: BenchConfig, execution: Execution) -> dict[str, Any]:
+    """What a benchmark will cost, by the run's own estimate (``sim.experiment.estimate``, in
+    CPU seconds of one thread): one tuning trial (``trial``) and one evaluation job (``job``) of
+    each method; the trials each method gets; the CPU seconds of all of them, of the tuning
+    alone, and the wall time with ``execution.jobs`` at a time (the tuning's rounds hold a trial
+    of every method, so it is shared out evenly; the evaluation's jobs go longest first). The
+    decisive pair's extra seeds are not counted: how many it needs is known only after."""
+    torch.set_num_threads(execution.threads)
+    tuning = bench.tuning().base
+    tuning = replace(tuning, settings=layered(tuning, {"train": TRIAL_TRAIN}), record=False)
+    evaluation = replace(bench.base, settings=layered(bench.base, {"train": LEAN}), record=False)
+    trial = job_seconds(tuning, validation_inputs(prepare(tuning, execution)).tasks)
+    job = job_seconds(evaluation, prepare(evaluation, execution).inputs.tasks)
+    trials = {m: bench.trials if search_space(m) else 0 for m in bench.ranked}
+    tuning_cpu = sum(trials[m] * trial[m] for m in bench.ranked)
+    seeds = {m: seed_count(bench, m) for m in bench.base.methods}
+    evaluation_cpu = sum(seeds[m] * job[m] for m in bench.base.methods)
+    jobs = [job[m] for m in bench.base.methods for _ in range(seeds[m])]
+    return {
+        "trial": trial,
+        "job": job,
+        "trials": trials,
+        "seeds": seeds,
+        "cpu_seconds": tuning_cpu + evaluation_cpu,
+        "tuning_cpu_seconds": tuning_cpu,
+        "wall_seconds": tuning_cpu / execution.jobs + lanes_seconds(jobs, execution.jobs),
+        "jobs": execution.jobs,
+    }
+
+
+def estimate_line(cost: dict[str, Any], jobs: int) -> str:
+    """The estimate in one line, as a board prints it before it starts."""
+    return (
+        f"{sum(cost['trials'].values())} tuning trials and {sum(cost['seeds'].values())} "
+        f"evaluation jobs, {jobs} at a time: about {describe(cost['wall_seconds'])} "
+        f"({cost['cpu_seconds']:.0f} CPU s, timed on this machine)"
+    )
+
+
+def estimate_table(bench: BenchConfig, cost: dict[str, Any]) -> str:
+    """``sim.bench --estimate``: each method's CPU seconds a trial and a job, its trials and
+    seeds, and what they add up to, so a preset can be sized before it runs."""
+    rows = ["| method | trial (CPU s) | trials | job (CPU s) | seeds | in all (CPU s) |"]
+    rows.append("|---|---|---|---|---|---|")
+    for m in bench.base.methods:
+        trials, seeds = cost["trials"].get(m, 0), cost["seeds"][m]
+        spent = trials * cost["trial"].get(m, 0.0) + seeds * cost["job"][m]
+        trial = f"{cost['trial'][m]:.1f}" if trials else "-"  # untuned, or a reference
+        rows.append(f"| {m} | {trial} | {trials} | {cost['job'][m]:.1f} | {seeds} | {spent:.0f} |")
+    return "\n".join(rows) + f"\n\n{bench.name}: " + estimate_line(cost, cost["jobs"])
