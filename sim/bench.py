@@ -37,19 +37,35 @@ EXAMPLES = (
 )
 
 
-def bench_parser():
-    """The command's options: a run's, the protocol's sizes and the decisive pair's."""
-    p = command_parser("sim.bench", __doc__.splitlines()[0], EXAMPLES + f"presets:\n{presets()}")
-    p.add_argument("preset", nargs="?", help=f"one of {', '.join(PRESETS)} (or --scenario)")
-    add_experiment_options(p, methods="all", record=True)
-    p.set_defaults(seeds=SEEDS)
-    p.add_argument(
+def add_tuning_options(p) -> None:
+    """The tuning's budget, curriculum, seed and storage."""
+    g = p.add_argument_group("tuning")
+    g.add_argument(
         "--trials",
         type=bounded_int(1, 1000),
         default=TRIALS,
         help=f"tuning trials per method ({TRIALS})",
     )
-    p.add_argument(
+    g.add_argument(
+        "--prune",
+        action="store_true",
+        help="stop tuning trials worse than the median of the finished ones after a task (from "
+        "the second on); cheaper, but it can discard the best trial (docs/runs.md)",
+    )
+    g.add_argument("--tune-scenario", help="the tuning curriculum (default: the preset's)")
+    g.add_argument(
+        "--tuning-seed",
+        type=bounded_int(0, 2**31 - 1),
+        help="the tuning's own root seed (its sampler, trials and data; default --seed): a "
+        "second tuning of one benchmark, evaluated on the same seeds, shows whether it selects",
+    )
+    g.add_argument("--storage", help="an Optuna storage URL shared by trials (default: SQLite)")
+
+
+def add_evaluation_options(p) -> None:
+    """What every method keeps, the references' seeds and the decisive pair."""
+    g = p.add_argument_group("evaluation")
+    g.add_argument(
         "--replay-budget",
         type=bounded_int(0, 1_000_000),
         default=REPLAY_BUDGET,
@@ -57,45 +73,41 @@ def bench_parser():
         help=f"scenes every replay method (coresets, A-GEM, DER++) keeps in all ({REPLAY_BUDGET}; "
         "0: each its own default)",
     )
-    p.add_argument(
+    g.add_argument(
         "--reference-seeds",
         type=bounded_int(1, 1000),
         default=REFERENCE_SEEDS,
         help=f"seeds of each reference, joint and joint-scratch ({REFERENCE_SEEDS})",
     )
-    p.add_argument(
+    g.add_argument(
         "--compare",
         metavar="A,B",
         help="the decisive pair: add seeds to these two until the 95 %% interval of their "
         "paired difference is narrower than --width",
     )
-    p.add_argument(
+    g.add_argument(
         "--width",
         type=bounded_float(1e-6, 1.0),
         default=0.01,
         metavar="METRES",
         help="the decisive pair's interval width to reach (0.01 m)",
     )
-    p.add_argument(
+    g.add_argument(
         "--max-seeds",
         type=bounded_int(2, 1000),
         default=30,
         help="the decisive pair's most seeds (30)",
     )
-    p.add_argument(
-        "--prune",
-        action="store_true",
-        help="stop tuning trials worse than the median of the finished ones after a task (from "
-        "the second on); cheaper, but it can discard the best trial (docs/runs.md)",
-    )
-    p.add_argument("--tune-scenario", help="the tuning curriculum (default: the preset's)")
-    p.add_argument(
-        "--tuning-seed",
-        type=bounded_int(0, 2**31 - 1),
-        help="the tuning's own root seed (its sampler, trials and data; default --seed): a "
-        "second tuning of one benchmark, evaluated on the same seeds, shows whether it selects",
-    )
-    p.add_argument("--storage", help="an Optuna storage URL shared by trials (default: SQLite)")
+
+
+def bench_parser():
+    """The command's options: a run's, the tuning's and the evaluation's."""
+    p = command_parser("sim.bench", __doc__.splitlines()[0], EXAMPLES + f"presets:\n{presets()}")
+    p.add_argument("preset", nargs="?", help=f"one of {', '.join(PRESETS)} (or --scenario)")
+    add_experiment_options(p, methods="all", record=True)
+    p.set_defaults(seeds=SEEDS)
+    add_tuning_options(p)
+    add_evaluation_options(p)
     p.add_argument("--out", type=Path, help="the benchmark's folder (default bench/PRESET)")
     p.add_argument(
         "--estimate",

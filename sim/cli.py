@@ -183,11 +183,15 @@ def add_experiment_options(
     record: bool = True,
     loggers: bool = True,
 ) -> None:
-    """The options of every command that trains: what to train, the domain cache, ``--set``,
-    ``--overwrite``, ``--resume``, the backend and ``--jobs``; with ``loggers`` (the jobs are
-    the engine's runs) ``--logger`` and with
-    ``record`` (they write recordings) ``--no-record``. ``methods``: the default of
-    ``--methods``; ``grid``: ``--set`` lists values to sweep."""
+    """The options of every command that trains: what to train (:func:`add_training_options`)
+    and where and how its jobs run (:func:`add_execution_options`)."""
+    add_training_options(p, methods, grid)
+    add_execution_options(p, record, loggers)
+
+
+def add_training_options(p: argparse.ArgumentParser, methods: str, grid: bool = False) -> None:
+    """What to train: methods, backbone, sizes, ``--set`` (``grid``: it lists values to sweep)
+    and the device. ``methods``: the default of ``--methods``."""
     p.add_argument(
         "--methods", default=methods, help=f"comma-separated, or all (default {methods})"
     )
@@ -203,9 +207,7 @@ def add_experiment_options(
     p.add_argument(
         "--k", type=bounded_int(1, 1000), help="samples of best-of-K (default 20, quick 5)"
     )
-    p.add_argument("--cache", type=Path, default=Path(".cache/domains"), help="domain cache folder")
     p.add_argument("--quick", action="store_true", help="tiny sizes, for smoke tests")
-    p.add_argument("--overwrite", action="store_true", help="replace the output folder (ours only)")
     p.add_argument(
         "--set",
         action="append",
@@ -215,13 +217,21 @@ def add_experiment_options(
         if grid
         else "override an option: model.beta_c=0, train.lr=0.001, c2inet-online.pruning=false",
     )
-    add_workers(p)
-    add_threads(p)
     p.add_argument(
         "--device",
         default="cpu",
         help="where models train: cpu (default), cuda, cuda:N, mps, or auto (a GPU if any)",
     )
+
+
+def add_execution_options(p: argparse.ArgumentParser, record: bool, loggers: bool) -> None:
+    """Where and how jobs run: the domain cache, ``--overwrite``, ``--resume``, workers and
+    threads, the backend and ``--jobs``; with ``record`` (the jobs write recordings)
+    ``--no-record``, with ``loggers`` (they are the engine's runs) ``--logger``."""
+    p.add_argument("--cache", type=Path, default=Path(".cache/domains"), help="domain cache folder")
+    p.add_argument("--overwrite", action="store_true", help="replace the output folder (ours only)")
+    add_workers(p)
+    add_threads(p)
     p.add_argument("--resume", action="store_true", help="continue the run in --out (or latest)")
     p.add_argument("--backend", choices=BACKENDS, default="local", help="where jobs run")
     p.add_argument(

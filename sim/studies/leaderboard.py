@@ -150,45 +150,37 @@ def _interval_text(cell: dict[str, Any]) -> str:
     return text if bounds is None else f"{text} [{bounds[0]:.3f}, {bounds[1]:.3f}]"
 
 
-def leaderboard_markdown(board: dict[str, Any]) -> str:
-    """The leaderboard as Markdown: what ran, the ranking on the point prediction, best of K,
-    the references, the decisive pair, the chosen settings and cost."""
-    comparison = {e["method"]: e for e in board["entries"]}
-    ranked = comparison_rows(comparison, "ade_k1")  # the entries are in rank order
-    ranks = ["rank", *(str(e["rank"]) for e in board["entries"])]
-    by_best_of_k = dict(sorted(comparison.items(), key=lambda item: item[1]["final_ade"]["mean"]))
-    settings = [["method", "chosen settings", "trials", "CPU s / job"]]
-    for e in board["entries"]:
-        trials = f"{e['trials']} ({e['pruned']} pruned)" if e.get("pruned") else str(e["trials"])
-        text = _settings_text(e["settings"]) or "(nothing to tune)"
-        settings.append([e["method"], text, trials, str(e["cpu_seconds"])])
+def _protocol_text(board: dict[str, Any]) -> str:
+    """The paragraph under the title: the sizes and what every number means."""
     sizes = {
         "quick": "**quick sizes: a smoke test, not a result**",
         "reduced": "**reduced sizes (below the protocol's): read as a first look**",
         "protocol": "the protocol's sizes",
     }[board["sizes"]]
-    run = board["run"]
-    given = _settings_text(run["settings"]) or "none"
+    given = _settings_text(board["run"]["settings"]) or "none"
     pruned = ", those worse than the median so far stopped early" if board.get("prune") else ""
-    lines = [
-        f"# Benchmark `{board['preset']}`: `{board['scenario']}`",
-        "",
+    replay = board.get("replay_budget")
+    return (
         f"{sizes}: {board['epochs']} epochs a task at batch {board['batch_scenes']}, K = "
         f"{board['k']}, {board['trials']} Optuna trials a method (its defaults first{pruned}) "
         f"on `{board['tune_scenario']}`{_tuning_seed_text(board)} scored on validation data only, "
-        f"then {board['seeds']} "
-        f"seeds a method, seed s drawing its own data for every method"
+        f"then {board['seeds']} seeds a method, seed s drawing its own data for every method"
         f"{_data_text(board.get('data', {}))}. `--set`: {given}. "
         f"Ranked by final average ADE of the point prediction (K = 1). Intervals are 95 %; p is "
         f"a paired t-test against {board['reference']} over the same seeds, Holm-adjusted over "
         f"the board, `*` below {board['alpha']}; a difference whose interval holds 0 is within "
         "the seed spread. Memory: floats a method keeps between tasks besides the model."
-        + (
-            f" Every replay method keeps {board['replay_budget']} scenes in all."
-            if board.get("replay_budget")
-            else ""
-        ),
-        "",
+        + (f" Every replay method keeps {replay} scenes in all." if replay else "")
+    )
+
+
+def _rankings(board: dict[str, Any]) -> list[str]:
+    """The ranking on the point prediction, then the board ordered by best of K."""
+    comparison = {e["method"]: e for e in board["entries"]}
+    ranked = comparison_rows(comparison, "ade_k1")  # the entries are in rank order
+    ranks = ["rank", *(str(e["rank"]) for e in board["entries"])]
+    by_best_of_k = dict(sorted(comparison.items(), key=lambda item: item[1]["final_ade"]["mean"]))
+    return [
         "Point prediction (K = 1):",
         "",
         markdown_table([[rank, *row] for rank, row in zip(ranks, ranked, strict=True)]),
@@ -198,36 +190,53 @@ def leaderboard_markdown(board: dict[str, Any]) -> str:
         markdown_table(comparison_rows(by_best_of_k, "ade")),
         "",
     ]
-    if board["references"]:
-        rows = [["reference", "seeds", "final avg K = 1 [95 % CI]", "final avg best of K"]]
-        rows += [
-            [
-                r["method"],
-                str(r["seeds"]),
-                _interval_text(r["final_ade_k1"]),
-                _interval_text(r["final_ade"]),
-            ]
-            for r in board["references"]
+
+
+def _references(board: dict[str, Any]) -> list[str]:
+    if not board["references"]:
+        return []
+    rows = [["reference", "seeds", "final avg K = 1 [95 % CI]", "final avg best of K"]]
+    rows += [
+        [
+            r["method"],
+            str(r["seeds"]),
+            _interval_text(r["final_ade_k1"]),
+            _interval_text(r["final_ade"]),
         ]
-        lines += [
-            f"References (not ranked, not tested; {board['reference']}'s tuned settings; "
-            "joint-scratch trained once, on the union of every task):",
-            "",
-            markdown_table(rows),
-            "",
-        ]
-    if board.get("decisive"):
-        d = board["decisive"]
-        bounds = d["interval"]
-        lines += [
-            f"Decisive pair, `{d['pair'][0]}` minus `{d['pair'][1]}` (final K = 1 ADE, paired, "
-            f"{d['seeds']} seeds, added until the interval is narrower than {d['width']:g} m): "
-            f"{d['difference']:+.4f} m"
-            + ("" if bounds is None else f" [{bounds[0]:+.4f}, {bounds[1]:+.4f}]")
-            + f". {d['verdict'][0].upper()}{d['verdict'][1:]}.",
-            "",
-        ]
-    lines += ["Chosen settings and cost:", "", markdown_table(settings), ""]
+        for r in board["references"]
+    ]
+    return [
+        f"References (not ranked, not tested; {board['reference']}'s tuned settings; "
+        "joint-scratch trained once, on the union of every task):",
+        "",
+        markdown_table(rows),
+        "",
+    ]
+
+
+def _decisive(board: dict[str, Any]) -> list[str]:
+    d = board.get("decisive")
+    if not d:
+        return []
+    bounds = d["interval"]
+    return [
+        f"Decisive pair, `{d['pair'][0]}` minus `{d['pair'][1]}` (final K = 1 ADE, paired, "
+        f"{d['seeds']} seeds, added until the interval is narrower than {d['width']:g} m): "
+        f"{d['difference']:+.4f} m"
+        + ("" if bounds is None else f" [{bounds[0]:+.4f}, {bounds[1]:+.4f}]")
+        + f". {d['verdict'][0].upper()}{d['verdict'][1:]}.",
+        "",
+    ]
+
+
+def _settings_and_cost(board: dict[str, Any]) -> list[str]:
+    """Each method's chosen settings and cost, then how and where the board ran."""
+    settings = [["method", "chosen settings", "trials", "CPU s / job"]]
+    for e in board["entries"]:
+        trials = f"{e['trials']} ({e['pruned']} pruned)" if e.get("pruned") else str(e["trials"])
+        text = _settings_text(e["settings"]) or "(nothing to tune)"
+        settings.append([e["method"], text, trials, str(e["cpu_seconds"])])
+    run = board["run"]
     cost = f"{run['wall_seconds'] / 60:.1f} min wall, {run['cpu_seconds']:.0f} CPU s of jobs"
     if run["decisive_seconds"]:
         cost += f", {run['decisive_seconds'] / 60:.1f} min of it the decisive pair's seeds"
@@ -236,12 +245,31 @@ def leaderboard_markdown(board: dict[str, Any]) -> str:
             f" (estimated before it started: {run['estimate']['wall_seconds'] / 60:.1f} min, "
             f"{run['estimate']['cpu_seconds']:.0f} CPU s)"
         )
-    lines += [
+    return [
+        "Chosen settings and cost:",
+        "",
+        markdown_table(settings),
+        "",
         f"Ran: `{run['command']}` (the last of {run['calls']} calls) at commit "
         f"{', '.join(f'`{c}`' for c in run['commits'])} on {run['machine']}, "
         f"{run['jobs']} jobs at a time: {cost}. Trials are kept in the study prefix "
         f"`{board['study_prefix']}`.",
         "",
+    ]
+
+
+def leaderboard_markdown(board: dict[str, Any]) -> str:
+    """The leaderboard as Markdown: what ran, the ranking on the point prediction, best of K,
+    the references, the decisive pair, the chosen settings and cost."""
+    lines = [
+        f"# Benchmark `{board['preset']}`: `{board['scenario']}`",
+        "",
+        _protocol_text(board),
+        "",
+        *_rankings(board),
+        *_references(board),
+        *_decisive(board),
+        *_settings_and_cost(board),
     ]
     return "\n".join(lines)
 
