@@ -40,6 +40,10 @@ def write_atomic(path: Path, write: Callable[[Path], None]) -> None:
         why = _why_unwritable(error, path.parent)
         if tmp is not None:
             Path(tmp).unlink(missing_ok=True)
+        if getattr(error, "errno", None) == errno.EISDIR:  # the folder's damage, not the device's
+            raise InputError(
+                f"cannot write {path}: a folder stands where the file goes; move it aside"
+            ) from None
         if why is None:
             raise
         raise CannotWrite(f"cannot write {path}: {why}") from None

@@ -108,7 +108,8 @@ def parse(
     """Parse ``argv`` over the options of ``--config FILE``, if given; for ``--list``, print the
     listing and return None."""
     path = config_path(argv)
-    defaults, settings = config_defaults(path, p) if path is not None else ({}, {})
+    notes: list[str] = []  # said once the command line holds: an error is its only line
+    defaults, settings = config_defaults(path, p, notes) if path is not None else ({}, {})
     repeatable = {a.dest for a in p._actions if isinstance(a, argparse._AppendAction)}
     p.set_defaults(**{d: v for d, v in defaults.items() if d not in repeatable})
     args = p.parse_args(argv)
@@ -122,6 +123,8 @@ def parse(
         return None
     if scenario_required and not args.scenario:
         p.error("the following arguments are required: --scenario")
+    for note in notes:
+        print(note, file=sys.stderr)
     return args
 
 

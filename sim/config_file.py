@@ -49,10 +49,11 @@ def _typed(path: Path, key: str, value: Any) -> None:
 SAFE_EXECUTION = ("backend", "jobs", "threads", "workers", "memory_budget")
 
 
-def read_config(path: Path) -> dict[str, Any]:
+def read_config(path: Path, notes: list[str] | None = None) -> dict[str, Any]:
     """A configuration file as one flat table: TOML, or JSON such as a run's ``config.json``
     (its ``experiment`` table, and of its ``execution`` table the keys of
-    :data:`SAFE_EXECUTION`, said on stderr)."""
+    :data:`SAFE_EXECUTION`, said on stderr, or appended to ``notes`` for the caller to say once
+    the command line holds)."""
     try:
         if not path.is_file():  # a FIFO or a device would never end
             raise OSError("not a regular file")
@@ -69,23 +70,30 @@ def read_config(path: Path) -> dict[str, Any]:
         execution = data.get("execution")
         execution = execution if isinstance(execution, dict) else {}
         taken = {k: v for k, v in execution.items() if k in SAFE_EXECUTION}
-        left = sorted(k for k, v in execution.items() if k not in taken and v)
+        left = sorted(
+            k if k.isidentifier() else repr(k) for k, v in execution.items() if k not in taken and v
+        )
         if taken or left:
-            print(
+            note = (
                 f"--config {path}: of its execution, applies "
                 f"{', '.join(f'{k}={v}' for k, v in sorted(taken.items())) or 'nothing'}"
-                + (f"; not {', '.join(left)} (give them as flags)" if left else ""),
-                file=sys.stderr,
+                + (f"; not {', '.join(left)} (give them as flags)" if left else "")
             )
+            if notes is None:
+                print(note, file=sys.stderr)
+            else:
+                notes.append(note)
         data = {**taken, **data["experiment"]}
     return data
 
 
-def config_defaults(path: Path, p: argparse.ArgumentParser) -> tuple[dict, dict]:
+def config_defaults(
+    path: Path, p: argparse.ArgumentParser, notes: list[str] | None = None
+) -> tuple[dict, dict]:
     """The parser's defaults from ``path``, as if typed (so checked by the same types), and the
-    file's ``--set`` settings. A key this command has no option for is skipped; a key no
-    command knows is an error."""
-    data, dests = read_config(path), {a.dest for a in p._actions}
+    file's ``--set`` settings (what it says of a run's execution: into ``notes``). A key this
+    command has no option for is skipped; a key no command knows is an error."""
+    data, dests = read_config(path, notes), {a.dest for a in p._actions}
     defaults = {}
     for key, value in data.items():
         if key == "settings":  # merged with --set apart

@@ -101,6 +101,12 @@ def claim(
     """Make ``out`` this run's: refuse a folder holding something else, check that a resumed run
     has the same configuration, and write ``config.json``."""
     saved = out / "config.json"
+    for own in (MARKER, LOCK):  # damaged where only this project writes: never guessed at
+        if (out / own).exists() and not (out / own).is_file():
+            raise InputError(
+                f"--out {out}: its {own} is not a file, so the folder is damaged; move it "
+                "aside (nothing in it is removed) and start the run again"
+            )
     if resume and not saved.is_file():
         raise InputError(f"--resume: {out} holds no run to resume (no config.json)")
     ours = (out / MARKER).is_file() or resume  # a resumable run of an earlier version counts

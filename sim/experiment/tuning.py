@@ -73,9 +73,10 @@ class TuneConfig:
             raise InputError(f"warmup tasks must be at least 0, got {self.warmup_tasks}")
 
 
-def check_storage(url: str | None) -> None:
-    """Refuse, in one line, a ``--storage`` URL Optuna cannot open, or an SQLite file that holds
-    another application's tables (it would gain Optuna's); nothing is claimed before."""
+def check_storage(url: str | None, where: str | None = None) -> None:
+    """Refuse, in one line, a ``--storage`` URL Optuna cannot open, or an SQLite file that is no
+    database or holds another application's tables (it would gain Optuna's); nothing is
+    claimed before. ``where`` names the store in the error (default: the ``--storage`` flag)."""
     if url is None:
         return
     import sqlite3
@@ -83,7 +84,7 @@ def check_storage(url: str | None) -> None:
     import optuna
     from sqlalchemy.engine import make_url
 
-    where = f"--storage {url[:80]!r}"
+    where = where or f"--storage {url[:80]!r}"
     try:
         parsed = make_url(url)
     except Exception as error:  # SQLAlchemy's parser: whatever it raises
@@ -240,6 +241,8 @@ def run_tuning(
     if not (out / MARKER).is_file():  # ours, for --overwrite: its studies and its trial folders
         mark_run(out)
     storage = tune.storage or f"sqlite:///{(out / 'tuning.db').resolve()}"
+    if tune.storage is None:  # our own store, damaged since: one line, not the driver's error
+        check_storage(storage, f"the tuning store {out / 'tuning.db'} (delete it to tune again)")
     base = replace(tune.base, seeds=1, record=False)
     tuned = [m for m in base.methods if search_space(m)]
     studies = {}
