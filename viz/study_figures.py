@@ -233,3 +233,25 @@ def leaderboard_figure(board: dict[str, Any], path: Path) -> None:
     )
     fig.tight_layout()
     save_figure(fig, path)
+
+
+def calibration_figure(report: dict[str, Any], path: Path) -> None:
+    """Left: the objective of every trial and the best so far; right: each profile's scaled
+    distance to the reference before and after the fit."""
+    fig, (left, right) = plt.subplots(1, 2, figsize=(10, 3.6))
+    history = [v if v < 1e8 else np.nan for v in report["history"]]
+    left.plot(range(1, len(history) + 1), history, "o", ms=3, color="0.6", label="trial")
+    left.plot(range(1, len(history) + 1), np.fmin.accumulate(history), color="C0", label="best")
+    left.set_xlabel("trial")
+    left.set_ylabel("objective (mean scaled W1)")
+    left.legend(frameon=False)
+    names = list(report["after"]["distances"]) or list(report["before"]["distances"])
+    x = np.arange(len(names))
+    for offset, side, colour in ((-0.2, "before", "0.6"), (0.2, "after", "C0")):
+        values = [report[side]["distances"].get(n) or np.nan for n in names]
+        right.bar(x + offset, values, 0.4, color=colour, label=side)
+    right.set_xticks(x, names, fontsize=8)
+    right.set_ylabel("W1 / reference spread")
+    right.legend(frameon=False)
+    fig.suptitle(f"{report['family']} calibrated to {report['reference']}", fontsize=10)
+    save_figure(fig, path)
