@@ -32,22 +32,27 @@ from c2inet.files import write_text_atomic
 from sim.data import Scene
 from sim.domains import build_domain
 from sim.families import Splits
+from sim.generators.crowd import CONTROLLERS, LAYOUTS, STARTS
 from sim.scenario import DomainSpec, parse_scenario
 from sim.stats import PROFILES, scene_profiles
 from sim.studies.base import Study, register
 from viz.study_figures import calibration_figure
 
 # knob -> (low, high, integer); speed_spread is searched as a share of speed (it must stay below
-# half of it), layout among the generator's layouts
+# half of it); the categorical knobs among the generator's options (CHOICES)
 SPACE: dict[str, tuple[float, float, bool]] = {
-    "agents": (2, 30, True),
-    "speed": (0.5, 2.0, False),
+    "agents": (2, 40, True),
+    "speed": (0.5, 3.0, False),
     "speed_spread": (0.0, 0.5, False),
     "noise": (0.0, 0.6, False),
     "radius": (0.15, 0.4, False),
     "horizon": (0.5, 4.0, False),
 }
-LAYOUTS = ("crossing", "corridor", "circle_crossing")
+CHOICES = {  # categorical knobs: the generator's own options
+    "layout": LAYOUTS,
+    "start": STARTS,  # from rest, or at the preferred velocity (a recording's agents are moving)
+    "controller": CONTROLLERS,
+}
 WINDOW = 20  # frames of a compared span: the generator's scene, a window of the learner
 
 
@@ -162,7 +167,7 @@ def calibrate(
     workers = execution.workers
     defaults = {k: base.knobs[k] for k in SPACE}
     defaults["speed_spread"] = defaults["speed_spread"] / max(defaults["speed"], 1e-9)
-    defaults["layout"] = base.knobs["layout"]
+    defaults.update({name: base.knobs[name] for name in CHOICES})
     out.mkdir(parents=True, exist_ok=True)
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     study = optuna.create_study(
@@ -180,7 +185,7 @@ def calibrate(
             name: (trial.suggest_int if integer else trial.suggest_float)(name, low, high)
             for name, (low, high, integer) in SPACE.items()
         }
-        params["layout"] = trial.suggest_categorical("layout", LAYOUTS)
+        params.update({n: trial.suggest_categorical(n, list(c)) for n, c in CHOICES.items()})
         knobs = knobs_of(params)
         value, distances = evaluate_knobs(base, knobs, scenes, seed, target, extra, workers)
         trial.set_user_attr("distances", distances)
@@ -253,7 +258,7 @@ def calibration_markdown(report: dict[str, Any]) -> str:
         b, a = before["distances"].get(name), after["distances"].get(name)
         rows.append(f"| {name} | {_num(b)} | {_num(a)} |")
     knobs = ["| knob | before | fitted |", "|---|---|---|"]
-    for name in [*SPACE, "layout"]:
+    for name in [*SPACE, *CHOICES]:
         knobs.append(f"| {name} | {before['knobs'].get(name)} | {after['knobs'].get(name)} |")
     return "\n".join(
         [
