@@ -485,7 +485,7 @@ TARGETS = [
     Target("SDD file", sdd_files, sdd_file_target),
     Target("TrajNet++ file", trajnet_files, trajnet_file_target),
     Target("config file", config_files, config_file_target),
-    Target("tuning storage", tuning_storages, tuning_storage_target),
+    Target("tuning storage", tuning_storages, tuning_storage_target, examples=50),
     Target("run folder", run_damages, run_folder_target, examples=12),  # a resume each: 1 s
 ]
 
