@@ -20,7 +20,7 @@ from __future__ import annotations
 import hashlib
 import math
 import re
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -146,72 +146,92 @@ def evaluate_knobs(
     return objective_of(distances), distances
 
 
-def calibrate(
-    scenario: str,
-    reference: str,
-    trials: int,
-    scenes: int,
-    seed: int,
-    execution,
-    out: Path,
-    extra: list[Path],
-) -> dict[str, Any]:
-    """Fit the knobs of ``scenario``'s (first) family to ``reference``'s training windows;
+@dataclass(frozen=True)
+class CalibrateConfig:
+    """A fit: the crowd family and its starting value (``scenario``), the recording
+    (``reference``), Optuna's ``trials``, generated training ``scenes`` a trial, the ``seed`` of
+    the sampler and of every generation, and extra family folders."""
+
+    scenario: str
+    reference: str
+    trials: int = 40
+    scenes: int = 60
+    seed: int = 0
+    extra: tuple[Path, ...] = ()
+
+
+def starting_point(base: DomainSpec) -> dict[str, Any]:
+    """The family's own knobs as a trial's parameters (the spread as a share of speed)."""
+    point = {k: base.knobs[k] for k in SPACE}
+    point["speed_spread"] = point["speed_spread"] / max(point["speed"], 1e-9)
+    return {**point, **{name: base.knobs[name] for name in CHOICES}}
+
+
+def suggest(trial) -> dict[str, Any]:
+    """A trial's parameters over :data:`SPACE` and :data:`CHOICES`."""
+    params = {
+        name: (trial.suggest_int if integer else trial.suggest_float)(name, low, high)
+        for name, (low, high, integer) in SPACE.items()
+    }
+    return {**params, **{n: trial.suggest_categorical(n, list(c)) for n, c in CHOICES.items()}}
+
+
+def _side(trial) -> dict[str, Any]:
+    return {
+        "knobs": knobs_of(trial.params),
+        "objective": trial.value,
+        "distances": trial.user_attrs.get("distances", {}),
+    }
+
+
+def calibrate(fit: CalibrateConfig, execution, out: Path) -> dict[str, Any]:
+    """Fit the knobs of ``fit.scenario``'s (first) family to the reference's training windows;
     returns the report and writes the calibrated family file into ``out``."""
     import optuna
 
-    base = parse_scenario(scenario, extra)[0]
+    extra = list(fit.extra)
+    base = parse_scenario(fit.scenario, extra)[0]
     if base.family.generator != "crowd":
-        raise InputError(f"--scenario {scenario}: calibrate fits a crowd family's knobs")
-    target, dt, digest = reference_profiles(reference, seed, execution, extra)
-    workers = execution.workers
-    defaults = {k: base.knobs[k] for k in SPACE}
-    defaults["speed_spread"] = defaults["speed_spread"] / max(defaults["speed"], 1e-9)
-    defaults.update({name: base.knobs[name] for name in CHOICES})
+        raise InputError(f"--scenario {fit.scenario}: calibrate fits a crowd family's knobs")
+    target, dt, digest = reference_profiles(fit.reference, fit.seed, execution, extra)
     out.mkdir(parents=True, exist_ok=True)
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     study = optuna.create_study(
-        study_name=f"calibrate:{base.family.name}:{digest}:{scenes}",
+        study_name=f"calibrate:{base.family.name}:{digest}:{fit.scenes}",
         storage=f"sqlite:///{(out / 'calibration.db').resolve()}",
-        sampler=optuna.samplers.TPESampler(seed=seed),
+        sampler=optuna.samplers.TPESampler(seed=fit.seed),
         direction="minimize",
         load_if_exists=True,
     )
     if not study.trials:
-        study.enqueue_trial(defaults)  # the family as it is comes first: the "before"
+        study.enqueue_trial(starting_point(base))  # the family as it is comes first: "before"
 
-    def trial_objective(trial: optuna.Trial) -> float:
-        params = {
-            name: (trial.suggest_int if integer else trial.suggest_float)(name, low, high)
-            for name, (low, high, integer) in SPACE.items()
-        }
-        params.update({n: trial.suggest_categorical(n, list(c)) for n, c in CHOICES.items()})
-        knobs = knobs_of(params)
-        value, distances = evaluate_knobs(base, knobs, scenes, seed, target, extra, workers)
+    def objective(trial) -> float:
+        knobs = knobs_of(suggest(trial))
+        value, distances = evaluate_knobs(
+            base, knobs, fit.scenes, fit.seed, target, extra, execution.workers
+        )
         trial.set_user_attr("distances", distances)
         return value if math.isfinite(value) else 1e9
 
-    remaining = trials - len([t for t in study.trials if t.state.is_finished()])
+    remaining = fit.trials - len([t for t in study.trials if t.state.is_finished()])
     if remaining > 0:
-        study.optimize(trial_objective, n_trials=remaining)
-    first, best = study.trials[0], study.best_trial
-    fitted = knobs_of(best.params)
+        study.optimize(objective, n_trials=remaining)
+    stem = re.sub(r"[^a-z0-9]+", "_", fit.reference.split("+")[0].lower()).strip("_")
     report = {
-        "scenario": scenario,
+        "scenario": fit.scenario,
         "family": base.family.name,
-        "reference": reference,
+        "reference": fit.reference,
         "reference_hash": digest,
         "dt": dt,
         "trials": len(study.trials),
-        "scenes": scenes,
-        "before": {"knobs": knobs_of(first.params), "objective": first.value,
-                   "distances": first.user_attrs.get("distances", {})},
-        "after": {"knobs": fitted, "objective": best.value,
-                  "distances": best.user_attrs.get("distances", {})},
+        "scenes": fit.scenes,
+        "before": _side(study.trials[0]),
+        "after": _side(study.best_trial),
         "history": [t.value for t in study.trials if t.value is not None],
-    }  # fmt: skip
-    name = "calibrated_" + re.sub(r"[^a-z0-9]+", "_", reference.split("+")[0].lower()).strip("_")
-    report["family_file"] = f"{name}.toml"
+        "family_file": f"calibrated_{stem}.toml",
+    }
+    fitted = report["after"]["knobs"]
     write_text_atomic(out / report["family_file"], family_toml(base, fitted, report))
     return report
 
@@ -307,16 +327,15 @@ class Calibrate(Study):
     def run(self, args, config, execution, out, argv):
         if not 1 <= args.trials <= 10_000 or not 1 <= args.scenes <= 10_000:
             raise InputError("--trials and --scenes: expected 1 to 10000")
-        return calibrate(
+        fit = CalibrateConfig(
             args.scenario,
             args.reference,
             args.trials,
             args.scenes,
             config.seed,
-            execution,
-            out,
-            list(config.scenarios_dir),
+            tuple(config.scenarios_dir),
         )
+        return calibrate(fit, execution, out)
 
 
 register(Calibrate())
