@@ -163,6 +163,9 @@ class Execution:
     rerun: str | None = None
     loggers: tuple[str, ...] = ()  # csv, tensorboard, mlflow[=URI], wandb[=online] (viz.loggers)
     memory_budget: float | None = None  # GB one domain's generation may take (None: no limit)
+    # the folder whose runs the trackers group (one MLflow experiment, one W&B group): a sweep's
+    # or a benchmark's, set by it; None: each run its own
+    tracking: Path | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "loggers", tuple(self.loggers))
@@ -187,7 +190,13 @@ class Execution:
     def job_options(self, resume: bool) -> dict[str, Any]:
         """The keyword options of :func:`run_job` that come from how the run executes."""
         live, loggers = self.live_target(), self.loggers
-        return {"threads": self.threads, "resume": resume, "live": live, "loggers": loggers}
+        return {
+            "threads": self.threads,
+            "resume": resume,
+            "live": live,
+            "loggers": loggers,
+            "tracking": self.tracking,
+        }
 
     def live_target(self) -> str | None:
         """Where jobs stream to: the spawned viewer's default address, or the given one."""

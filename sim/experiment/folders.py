@@ -46,8 +46,10 @@ RUN_FILES = {
     "spent.json",  # a benchmark's time
     "tuning.db",  # a tuning's Optuna studies (in its own marked folder)
     "tuning.json",
+    "mlflow.db",  # --logger mlflow's store, the run's or its sweep's
 }
 RUN_FOLDERS = {"jobs", "matrices", "figures", "logs", "tensorboard", "cache", "cells"}
+RUN_FOLDERS |= {"mlartifacts", "wandb"}  # the trackers' copies of a run's report and figures
 MAX_CONFIG_BYTES = 1 << 20  # a run's config.json is a few kilobytes
 TEMPORARY = re.compile(r"^\.[^/]+\.[A-Za-z0-9_]{8}" + re.escape(TEMPORARY_SUFFIX) + "$")
 
@@ -156,7 +158,8 @@ def _claim_locked(
             )
         remove_run(out)
     mark_run(out)
-    data = {"experiment": config.to_json(), "execution": _plain(asdict(execution))}
+    execution_table = {k: v for k, v in asdict(execution).items() if k != "tracking"}
+    data = {"experiment": config.to_json(), "execution": _plain(execution_table)}
     write_text_atomic(saved, json.dumps(data, indent=1) + "\n")
 
 

@@ -140,6 +140,7 @@ def run_job(
     live: str | None = None,
     loggers: tuple[str, ...] = (),
     on_event: Callable[[str, dict], None] | None = None,
+    tracking: Path | None = None,
 ) -> JobResult:
     """Train one method with one seed through the curriculum, in ``job.folder(out)``.
 
@@ -157,7 +158,8 @@ def run_job(
         resume = False  # finished, but its recording is lost: run it again to draw it
     observers = [] if on_event is None else [on_event]
     names = [t.name for t in inputs.tasks]
-    logs = make_loggers(loggers, folder, config.epochs, names, out, job_params(job, config))
+    params = job_params(job, config)
+    logs = make_loggers(loggers, folder, config.epochs, names, out, params, tracking)
     observers += logs
     recorder = drawing = None
     if (config.record or live) and job.seed_index == 0:  # the first seed is drawn

@@ -39,6 +39,7 @@ from c2inet.report_markdown import markdown_report
 from sim.data import SPLITS
 from sim.experiment.folders import MARKER, TRUTH_PART, record_written
 from viz.cli import config_path
+from viz.loggers import log_outputs
 from viz.recording import merge_recordings
 
 if TYPE_CHECKING:
@@ -181,6 +182,10 @@ def write_outputs(
             parts += [r.job.folder(out) / "recording.rrd" for r in results if r.predictions]
             merge_recordings(parts, out / "recording.rrd")
             parts[0].unlink()
+    if execution.loggers:  # the trackers that keep files get the report, figures and recording
+        shown = ["report.md", "metrics.json", "recording.rrd", *run["figures"]]
+        files = [out / name for name in shown if (out / name).is_file()]
+        log_outputs(execution.loggers, out, execution.tracking or out, files)
     return metrics
 
 

@@ -47,7 +47,7 @@ def run_experiment(
         check_reachable(viewer_url(execution.rerun))
     out = output_folder(config.scenario, out, resume)
     claim(out, config, execution, resume, overwrite)
-    prepare_tracking(execution.loggers, out)
+    prepare_tracking(execution.loggers, execution.tracking or out)
     torch.set_num_threads(execution.threads)
     started = time.perf_counter()
     curriculum = prepare(config, execution)

@@ -24,6 +24,7 @@ from sim.experiment.folders import TRUTH_PART, claim, run_root
 from sim.experiment.jobs import JobResult, follow, prepare, record_truth, run_job
 from sim.experiment.outputs import COLUMNS, tidy_rows, write_outputs, write_results
 from sim.progress import progress_bar
+from viz.loggers import prepare_tracking
 
 
 @dataclass(frozen=True)
@@ -142,8 +143,9 @@ def run_sweep(
     argv: list[str] | None = None,
 ) -> list[tuple[str, ExperimentConfig, dict]]:
     """Run every experiment of ``sweep`` under ``out``; returns (setting, config, metrics)."""
-    execution = execution or Execution()
+    execution = replace(execution or Execution(), tracking=out)  # one experiment, side by side
     claim(out, sweep, execution, resume, overwrite)
+    prepare_tracking(execution.loggers, out)
     planned = []
     for label, config in sweep.experiments():
         folder = out / run_root(config.scenario).name / run_root(label).name

@@ -57,6 +57,7 @@ from sim.studies.presets import (  # noqa: F401  (the protocol, exported with th
     TRIALS,
     Preset,
 )
+from viz.loggers import prepare_tracking
 from viz.study_figures import leaderboard_figure
 
 
@@ -188,11 +189,13 @@ def run_bench(
     argv: list[str] | None = None,
 ) -> dict[str, Any]:
     """Tune, evaluate and rank; returns the leaderboard (also written under ``out``)."""
-    execution = execution or Execution()
+    # every trial and evaluation run of the benchmark in one tracking experiment (--logger)
+    execution = replace(execution or Execution(), tracking=out)
     started, cpu_started = time.perf_counter(), time.process_time()
     commit = git_commit()  # the code that runs, not what the checkout holds when it ends
     check_storage(bench.storage)  # before the folder is claimed
     claim(out, bench, execution, resume, overwrite)
+    prepare_tracking(execution.loggers, out)
     estimate = None
     if not resume and not bench.base.quick:  # timing a quick benchmark costs as much as running it
         cost = estimate_bench(bench, execution)

@@ -325,7 +325,15 @@ def test_loggers_write_the_numbers_of_metrics_json(tmp_path, capsys):
 
     client = MlflowClient(f"sqlite:///{out.resolve() / 'mlflow.db'}")
     (experiment,) = [e for e in client.search_experiments() if e.name.endswith("/run")]
-    (tracked,) = client.search_runs([experiment.experiment_id])
+    runs = client.search_runs([experiment.experiment_id])
+    (tracked,) = [r for r in runs if "c2i_job" in r.data.tags]
+    (report,) = [r for r in runs if "c2i_report" in r.data.tags]  # the run's files, as artifacts
+    assert report.data.tags["c2i_report"] == "report"
+    shown = {a.path for a in client.list_artifacts(report.info.run_id)}
+    assert {"report.md", "metrics.json", "figures"} <= shown
+    figures = {a.path for a in client.list_artifacts(report.info.run_id, "figures")}
+    assert "figures/average_seen.png" in figures
+    assert (out / "mlartifacts").is_dir()  # beside the store, not in the working directory
     assert tracked.data.tags["c2i_job"] == "jobs/finetune/seed_0"
     assert tracked.data.params["train.lr"] == "0.002" and tracked.data.params["seed"] == "0"
     history = client.get_metric_history(tracked.info.run_id, "matrix_ade/crowd_noise_0.1")
@@ -349,6 +357,36 @@ def test_loggers_write_the_numbers_of_metrics_json(tmp_path, capsys):
             steps.setdefault(items["_step"], {}).update(items)
     assert steps[3]["matrix_ade/crowd_noise_0.1"] == pytest.approx(metrics["ade"][1][0])
     assert "nll" in steps[0] and "val_ade/crowd_noise_0.2" in steps[2]
+    (kept,) = (out / "wandb").glob("offline-run-*/run-*.wandb")  # the report's run
+    (report_run,) = [r.run for r in wandb_records(kept) if r.HasField("run")]
+    assert (report_run.run_group, report_run.display_name) == ("run", "report")
+    assert any(r.HasField("artifact") for r in wandb_records(kept))
+
+
+def test_a_sweeps_runs_are_one_tracking_experiment_side_by_side(tmp_path):
+    """A sweep is one MLflow experiment (its folder's) in one store, each variant's jobs and
+    report a run of it; so is its W&B group."""
+    from mlflow.tracking import MlflowClient
+
+    from sim.sweep import main as sweep_main
+
+    out = tmp_path / "sweep"
+    argv = ["--scenario", "crowd_noise_0.1,0.2", "--quick", "--methods", "finetune"]
+    argv += ["--set", "train.lr=0.001,0.002", "--no-record", "--logger", "mlflow,wandb"]
+    assert sweep_main([*argv, "--jobs", "2", "--out", str(out)]) == 0
+    client = MlflowClient(f"sqlite:///{out.resolve() / 'mlflow.db'}")
+    (experiment,) = [e for e in client.search_experiments() if e.name.endswith("/sweep")]
+    names = sorted(r.info.run_name for r in client.search_runs([experiment.experiment_id]))
+    variants = sorted(p.name for p in (out / "crowd_noise_0.1,0.2").iterdir())
+    assert len(variants) == 2 and len(names) == 4  # a job and a report a variant
+    for variant in variants:
+        assert f"crowd_noise_0.1,0.2/{variant}/jobs/finetune/seed_0" in names
+        assert f"crowd_noise_0.1,0.2/{variant}/report" in names
+    assert not list(out.glob("*/*/mlflow.db"))  # no store of its own in a variant
+    for job in out.glob("*/*/jobs/finetune/seed_0"):
+        (offline,) = (job / "wandb").glob("offline-run-*/run-*.wandb")
+        (started,) = [r.run for r in wandb_records(offline) if r.HasField("run")]
+        assert started.run_group == "sweep"
 
 
 def wandb_records(path: Path) -> list:

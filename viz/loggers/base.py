@@ -41,8 +41,13 @@ class Logger:
         """End the job's output (the default: nothing to end)."""
 
     @classmethod
-    def prepare(cls, run_folder: Path, value: str | None) -> None:
-        """What the run's jobs share, made once before they start (the default: nothing)."""
+    def prepare(cls, group: Path, value: str | None) -> None:
+        """What the jobs of ``group`` (a run's folder, or a sweep's or a benchmark's, whose runs
+        compare side by side) share, made once before they start (the default: nothing)."""
+
+    @classmethod
+    def log_outputs(cls, run_folder: Path, group: Path, value: str | None, files: list[Path]):
+        """The run's report, figures and recording, once written (the default: nothing)."""
 
 
 def _is_logger(entry: Any) -> str | None:
@@ -80,11 +85,19 @@ def check_spec(spec: str) -> None:
         raise InputError(f"--logger {spec[:80]!r}: {name}'s value is {' or '.join(cls.values)}")
 
 
-def prepare_tracking(specs: tuple[str, ...], run_folder: Path) -> None:
-    """Create what the jobs' loggers share (the MLflow store and experiment) before they run."""
+def prepare_tracking(specs: tuple[str, ...], group: Path) -> None:
+    """Create what the jobs' loggers share (the MLflow store and experiment of ``group``)
+    before they run: two jobs creating it at once would race."""
     for spec in specs:
         name, _, value = spec.partition("=")
-        REGISTRY.get(name).prepare(run_folder.resolve(), value or None)
+        REGISTRY.get(name).prepare(group.resolve(), value or None)
+
+
+def log_outputs(specs: tuple[str, ...], run_folder: Path, group: Path, files: list[Path]) -> None:
+    """Hand a finished run's report, figures and recording to every logger that keeps files."""
+    for spec in specs:
+        name, _, value = spec.partition("=")
+        REGISTRY.get(name).log_outputs(run_folder.resolve(), group.resolve(), value or None, files)
 
 
 def make_loggers(
@@ -94,12 +107,14 @@ def make_loggers(
     tasks: list[str],
     run_folder: Path | None = None,
     params: dict[str, Any] | None = None,
+    group: Path | None = None,
 ) -> list[Logger]:
-    """The loggers ``specs`` name, for the job in ``folder`` of the run in ``run_folder``."""
+    """The loggers ``specs`` name, for the job in ``folder`` of the run in ``run_folder``, one
+    of the runs of ``group`` (a sweep's or benchmark's folder; default: the run's own)."""
     loggers = []
     for spec in specs:
         name, _, value = spec.partition("=")
-        options = {"run_folder": run_folder, "params": params, "uri": value or None}
+        options = {"run_folder": run_folder, "params": params, "uri": value or None, "group": group}
         loggers.append(REGISTRY.get(name)(folder, epochs, tasks, **options))
     return loggers
 

@@ -22,10 +22,12 @@ MLFLOW_PATIENCE = {
 
 @register
 class MLflowLogger(Logger):
-    """An MLflow run per job, in the run's own store ``mlflow.db`` (SQLite; ``mlflow ui
-    --backend-store-uri sqlite:///RUN/mlflow.db``) or on the server of ``mlflow=URI``: the
-    configuration as parameters, every number as a metric at its step. The experiment is the
-    run folder (``scenario/timestamp``)."""
+    """An MLflow run per job, in the store ``mlflow.db`` of its group (the run's folder, or the
+    sweep's or benchmark's it belongs to: SQLite, ``mlflow ui --backend-store-uri
+    sqlite:///GROUP/mlflow.db``) or on the server of ``mlflow=URI``: the configuration as
+    parameters, every number as a metric at its step. The experiment is the group's folder
+    (``scenario/timestamp``, or the sweep's), so a sweep's runs compare side by side; each run
+    folder's report, figures and recording are the artifacts of one more run, ``.../report``."""
 
     name = "mlflow"
     title = "an MLflow run per job, in the run's mlflow.db or on the server of mlflow=URI"
@@ -33,25 +35,37 @@ class MLflowLogger(Logger):
 
     def __init__(self, folder: Path, epochs: int, tasks: list[str], run_folder=None, **options):
         run_folder = Path(run_folder or folder).resolve()
+        group = Path(options.get("group") or run_folder).resolve()
         self.epochs, self.tasks = epochs, tasks
-        self.client, experiment = self.experiment(run_folder, options.get("uri"))
-        job = folder.resolve().relative_to(run_folder).as_posix()
-        # the run folder's own tag: two folders of one name logging to one store stay apart
-        owner = hashlib.sha256(str(run_folder).encode()).hexdigest()[:16]
-        mine = f"tags.c2i_job = '{job}' and tags.c2i_run = '{owner}'"
-        for old in self.client.search_runs([experiment], mine):
-            self.client.delete_run(old.info.run_id)  # a resumed job logs everything again
-        tags = {"c2i_job": job, "c2i_run": owner, "c2i_folder": str(run_folder)}
-        run = self.client.create_run(experiment, run_name=job, tags=tags)
-        self.run_id = run.info.run_id
+        self.client, experiment = self.experiment(group, options.get("uri"))
+        self.run_id = _fresh_run(
+            self.client, experiment, group, run_folder, folder.resolve(), "c2i_job"
+        )
         params = [_param(k, v) for k, v in (options.get("params") or {}).items()]
         for start in range(0, len(params), 100):  # MLflow takes 100 parameters a request
             self.client.log_batch(self.run_id, params=params[start : start + 100])
 
+    @classmethod
+    def prepare(cls, group: Path, value: str | None) -> None:
+        """The store and experiment, by the group itself before its jobs race to create them."""
+        cls.experiment(group, value)
+
+    @classmethod
+    def log_outputs(cls, run_folder: Path, group: Path, value: str | None, files: list[Path]):
+        """The run's report, figures and recording as the artifacts of its ``report`` run."""
+        client, experiment = cls.experiment(group, value)
+        run_id = _fresh_run(
+            client, experiment, group, run_folder, run_folder / "report", "c2i_report"
+        )
+        for path in files:
+            where = path.parent.relative_to(run_folder).as_posix()
+            client.log_artifact(run_id, str(path), None if where == "." else where)
+        client.set_terminated(run_id)
+
     @staticmethod
-    def experiment(run_folder: Path, uri: str | None = None):
-        """(client, experiment id) of the run, created when missing: by the run itself before
-        its jobs start, since two jobs creating the store at once would race."""
+    def experiment(group: Path, uri: str | None = None):
+        """(client, experiment id) of the group, created when missing (its artifacts beside its
+        own store, not in the working directory)."""
         try:
             from mlflow.tracking import MlflowClient
         except ImportError:
@@ -61,12 +75,15 @@ class MLflowLogger(Logger):
         logging.getLogger("mlflow").setLevel(logging.WARNING)  # its schema notices
         for key, value in MLFLOW_PATIENCE.items():  # a bounded wait for a server, not minutes
             os.environ.setdefault(key, value)
-        target = uri or f"sqlite:///{run_folder / 'mlflow.db'}"
-        name = f"{run_folder.parent.name}/{run_folder.name}"
+        target = uri or f"sqlite:///{group / 'mlflow.db'}"
+        name = f"{group.parent.name}/{group.name}"
         try:
             client = MlflowClient(target)
             found = client.get_experiment_by_name(name)
-            return client, found.experiment_id if found else client.create_experiment(name)
+            if found:
+                return client, found.experiment_id
+            artifacts = None if uri else (group / "mlartifacts").as_uri()
+            return client, client.create_experiment(name, artifact_location=artifacts)
         except Exception as error:  # a refused, failing or absent server, a bad store: its own
             why = one_line(str(error).strip().splitlines()[0] if str(error).strip() else "")
             raise InputError(
@@ -88,13 +105,23 @@ class MLflowLogger(Logger):
     def close(self) -> None:
         self.client.set_terminated(self.run_id)
 
-    @classmethod
-    def prepare(cls, run_folder: Path, value: str | None) -> None:
-        """The store and experiment, by the run itself before its jobs race to create them."""
-        cls.experiment(run_folder, value)
-
 
 def _param(key: str, value: Any):
     from mlflow.entities import Param
 
     return Param(key, str(value)[:6000])  # MLflow's limit on a parameter's value
+
+
+def _fresh_run(client, experiment: str, group: Path, run_folder: Path, path: Path, kind: str):
+    """A new MLflow run for ``path`` (a job's folder, or a run's report) of ``run_folder``,
+    named by its place in ``group``; the earlier one of the same path and run folder is deleted
+    first (a resumed job logs everything again). Tagged by the run folder's own hash, so two
+    folders of one name logging to one store never delete each other's runs."""
+    name = path.relative_to(group).as_posix() if path.is_relative_to(group) else path.name
+    owner = hashlib.sha256(str(run_folder).encode()).hexdigest()[:16]
+    for old in client.search_runs(
+        [experiment], f"tags.{kind} = '{name}' and tags.c2i_run = '{owner}'"
+    ):
+        client.delete_run(old.info.run_id)
+    tags = {kind: name, "c2i_run": owner, "c2i_folder": str(run_folder)}
+    return client.create_run(experiment, run_name=name, tags=tags).info.run_id
