@@ -161,20 +161,8 @@ def run_job(
     params = job_params(job, config)
     logs = make_loggers(loggers, folder, config.epochs, names, out, params, tracking)
     observers += logs
-    recorder = drawing = None
-    if (config.record or live) and job.seed_index == 0:  # the first seed is drawn
-        partial = folder / "recording.partial.rrd" if config.record else None
-        recorder = RunRecorder.create(APP_ID, recording_id(config), partial, live, None)
-        colour = method_colour(config.methods.index(job.method))
-        drawing = RecordingObserver(
-            recorder,
-            job.method,
-            inputs.showcases,
-            config.k,
-            config.epochs,
-            colour,
-            seed=config.seed,
-        )
+    recorder, drawing, partial = drawer(job, config, inputs, folder, live)
+    if drawing is not None:
         observers.append(drawing)
     trainer = ContinualTrainer(
         config.method(job.method),
@@ -197,6 +185,20 @@ def run_job(
         result.predictions = drawing.final_predictions
     result.save(folder, identity)
     return result
+
+
+def drawer(job: Job, config: ExperimentConfig, inputs: JobInputs, folder: Path, live):
+    """(recorder, observer, partial path) that draw the job's training into its recording (a
+    partial file renamed when complete) or a live viewer: the first seed's only; Nones else."""
+    if not (config.record or live) or job.seed_index != 0:
+        return None, None, None
+    partial = folder / "recording.partial.rrd" if config.record else None
+    recorder = RunRecorder.create(APP_ID, recording_id(config), partial, live, None)
+    colour = method_colour(config.methods.index(job.method))
+    drawing = RecordingObserver(
+        recorder, job.method, inputs.showcases, config.k, config.epochs, colour, seed=config.seed
+    )
+    return recorder, drawing, partial
 
 
 def job_params(job: Job, config: ExperimentConfig) -> dict[str, Any]:

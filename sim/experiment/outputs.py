@@ -158,6 +158,36 @@ def write_outputs(
             )
     card = json.dumps(run_card(config, execution, curriculum, wall, argv), indent=1)
     write_text_atomic(out / "run_card.json", card + "\n")
+    run, report = write_report_and_figures(
+        out, config, curriculum, summary, results, wall, argv, figures
+    )
+    if truth is not None:
+        truth.log_run_card(f"{report}\n## Run card\n\n```json\n{card}\n```\n")
+        truth.close()
+        if config.record:
+            parts = [out / TRUTH_PART]
+            parts += [r.job.folder(out) / "recording.rrd" for r in results if r.predictions]
+            merge_recordings(parts, out / "recording.rrd")
+            parts[0].unlink()
+    if execution.loggers:  # the trackers that keep files get the report, figures and recording
+        shown = ["report.md", "metrics.json", "recording.rrd", *run["figures"]]
+        files = [out / name for name in shown if (out / name).is_file()]
+        log_outputs(execution.loggers, out, execution.tracking or out, files)
+    return metrics
+
+
+def write_report_and_figures(
+    out: Path,
+    config: ExperimentConfig,
+    curriculum: Curriculum,
+    summary: dict[str, Any],
+    results: list[JobResult],
+    wall: float,
+    argv: list[str],
+    figures: bool,
+) -> tuple[dict[str, Any], str]:
+    """``figures/`` (unless not ``figures``) and ``report.md``, which links them, gives the
+    command and marks quick sizes; returns what the report says of the run, and the report."""
     run = {
         "quick": config.quick,
         "epochs": config.epochs,
@@ -174,19 +204,7 @@ def write_outputs(
         run["figures"] = sorted(p.relative_to(out).as_posix() for p in out.glob("figures/*.png"))
     report = markdown_report(config.scenario, curriculum.labels, config.k, summary, run)
     write_text_atomic(out / "report.md", report)
-    if truth is not None:
-        truth.log_run_card(f"{report}\n## Run card\n\n```json\n{card}\n```\n")
-        truth.close()
-        if config.record:
-            parts = [out / TRUTH_PART]
-            parts += [r.job.folder(out) / "recording.rrd" for r in results if r.predictions]
-            merge_recordings(parts, out / "recording.rrd")
-            parts[0].unlink()
-    if execution.loggers:  # the trackers that keep files get the report, figures and recording
-        shown = ["report.md", "metrics.json", "recording.rrd", *run["figures"]]
-        files = [out / name for name in shown if (out / name).is_file()]
-        log_outputs(execution.loggers, out, execution.tracking or out, files)
-    return metrics
+    return run, report
 
 
 def run_card(config, execution, curriculum, wall: float, argv: list[str]) -> dict[str, Any]:

@@ -240,24 +240,9 @@ def run_tuning(
     out.mkdir(parents=True, exist_ok=True)
     if not (out / MARKER).is_file():  # ours, for --overwrite: its studies and its trial folders
         mark_run(out)
-    storage = tune.storage or f"sqlite:///{(out / 'tuning.db').resolve()}"
-    if tune.storage is None:  # our own store, damaged since: one line, not the driver's error
-        check_storage(storage, f"the tuning store {out / 'tuning.db'} (delete it to tune again)")
     base = replace(tune.base, seeds=1, record=False)
     tuned = [m for m in base.methods if search_space(m)]
-    studies = {}
-    for method in tuned:
-        study = optuna.create_study(
-            study_name=f"{tune.study_prefix}{method}",
-            storage=storage,
-            direction="minimize",
-            load_if_exists=True,
-        )
-        if study.direction != optuna.study.StudyDirection.MINIMIZE:
-            raise InputError(f"tuning: the stored study {study.study_name!r} maximises; not ours")
-        for trial in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
-            study.tell(trial.number, state=TrialState.FAIL)  # killed: asked again below
-        studies[method] = study
+    studies = open_studies(tune, out, tuned)
 
     def finished(method: str, states=(TrialState.COMPLETE, TrialState.PRUNED)) -> list:
         return studies[method].get_trials(deepcopy=False, states=states)
@@ -296,29 +281,69 @@ def run_tuning(
         costs = [trial_seconds(out, method) for method, _ in asked]  # the longest start first
         done = run_together(planned, execution, resume=True, argv=[], costs=costs, figures=False)
         for (method, trial), (_, (job,)) in zip(asked, done, strict=True):  # in index order
-            # a diverged trial is the worst there is, not a failure to ask again (same seed,
-            # same history: the same settings, for ever)
-            curve = [round(float(v), 6) for v in objective_so_far(job.result)]  # as metrics
-            for task, value in enumerate(curve):
-                trial.report(value if math.isfinite(value) else math.inf, task)
-            if len(curve) < tasks:
-                studies[method].tell(trial, state=TrialState.PRUNED)
-            else:
-                studies[method].tell(trial, curve[-1] if math.isfinite(curve[-1]) else math.inf)
+            tell(studies[method], trial, job.result, tasks)
     chosen = {m: {"settings": {}, "trials": []} for m in base.methods if m not in tuned}
-    for method in tuned:
-        trials = finished(method)
-        complete = finished(method, (TrialState.COMPLETE,))
-        best = min(complete, key=lambda t: (t.value, t.number))
-        _check_params(studies[method].study_name, method, best.params)
-        chosen[method] = {
-            "settings": as_settings(method, best.params),
-            "objective": _finite(best.value),
-            "default_objective": _finite(trials[0].value),  # the first trial is the defaults
-            "trials": [_trial_record(t) for t in trials],  # in the order they were asked
-        }
+    chosen |= {method: choice(method, studies[method]) for method in tuned}
     write_text_atomic(out / "tuning.json", json.dumps(chosen, indent=1) + "\n")
     return chosen
+
+
+def open_studies(tune: TuneConfig, out: Path, methods: list[str]) -> dict[str, Any]:
+    """Each method's Optuna study in the tuning's store (``out/tuning.db`` unless
+    ``tune.storage``), created or loaded; a damaged store or a study that is not ours is one
+    line, and the trials a killed tuning left running are failed, to be asked again."""
+    import optuna
+    from optuna.trial import TrialState
+
+    storage = tune.storage or f"sqlite:///{(out / 'tuning.db').resolve()}"
+    if tune.storage is None:  # our own store, damaged since: one line, not the driver's error
+        check_storage(storage, f"the tuning store {out / 'tuning.db'} (delete it to tune again)")
+    studies = {}
+    for method in methods:
+        study = optuna.create_study(
+            study_name=f"{tune.study_prefix}{method}",
+            storage=storage,
+            direction="minimize",
+            load_if_exists=True,
+        )
+        if study.direction != optuna.study.StudyDirection.MINIMIZE:
+            raise InputError(f"tuning: the stored study {study.study_name!r} maximises; not ours")
+        for trial in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
+            study.tell(trial.number, state=TrialState.FAIL)  # killed: asked again below
+        studies[method] = study
+    return studies
+
+
+def tell(study, trial, result: Result, tasks: int) -> None:
+    """Report a finished trial's objective after each task it learnt and close it: complete,
+    or pruned if it stopped early. A diverged trial is the worst there is, not a failure to ask
+    again (same seed, same history: the same settings, for ever)."""
+    from optuna.trial import TrialState
+
+    curve = [round(float(v), 6) for v in objective_so_far(result)]  # as metrics.json has them
+    for task, value in enumerate(curve):
+        trial.report(value if math.isfinite(value) else math.inf, task)
+    if len(curve) < tasks:
+        study.tell(trial, state=TrialState.PRUNED)
+    else:
+        study.tell(trial, curve[-1] if math.isfinite(curve[-1]) else math.inf)
+
+
+def choice(method: str, study) -> dict[str, Any]:
+    """The best complete trial of ``method``'s study (the earliest of equals) as its chosen
+    settings, beside the defaults' objective and every trial, in the order they were asked."""
+    from optuna.trial import TrialState
+
+    trials = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE, TrialState.PRUNED))
+    complete = [t for t in trials if t.state == TrialState.COMPLETE]
+    best = min(complete, key=lambda t: (t.value, t.number))
+    _check_params(study.study_name, method, best.params)
+    return {
+        "settings": as_settings(method, best.params),
+        "objective": _finite(best.value),
+        "default_objective": _finite(trials[0].value),  # the first trial is the defaults
+        "trials": [_trial_record(t) for t in trials],
+    }
 
 
 def objective_so_far(result: Result) -> np.ndarray:
