@@ -99,7 +99,7 @@ def knobs_of(params: dict[str, Any]) -> dict[str, Any]:
     return knobs
 
 
-def generated_spec(base: DomainSpec, knobs: dict[str, Any], extra: list[Path]) -> DomainSpec:
+def generated_spec(base: DomainSpec, knobs: dict[str, Any]) -> DomainSpec:
     """``base``'s family with ``knobs``: the family's own knob sets its value, the others its
     defaults (as ``--set data.KNOB`` would)."""
     family = base.family
@@ -131,13 +131,12 @@ def evaluate_knobs(
     scenes: int,
     seed: int,
     reference: dict,
-    extra: list[Path],
     workers: int = 1,
 ) -> tuple[float, dict[str, float | None]]:
     """Generate ``scenes`` training scenes with ``knobs`` and score them against ``reference``;
     a combination the generator refuses (too many agents for the area) scores infinity."""
     try:
-        spec = generated_spec(base, dict(knobs), extra)
+        spec = generated_spec(base, dict(knobs))
         domain = build_domain(spec, seed, None, Splits(scenes, 1, 1), workers)
     except InputError:
         return math.inf, {}
@@ -209,7 +208,7 @@ def calibrate(fit: CalibrateConfig, execution, out: Path) -> dict[str, Any]:
     def objective(trial) -> float:
         knobs = knobs_of(suggest(trial))
         value, distances = evaluate_knobs(
-            base, knobs, fit.scenes, fit.seed, target, extra, execution.workers
+            base, knobs, fit.scenes, fit.seed, target, execution.workers
         )
         trial.set_user_attr("distances", distances)
         return value if math.isfinite(value) else 1e9
