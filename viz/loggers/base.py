@@ -65,10 +65,6 @@ def register(cls: type[Logger]) -> type[Logger]:
     return REGISTRY.add(cls.__dict__.get("name", ""), cls)
 
 
-def logger_names() -> list[str]:
-    return REGISTRY.names()
-
-
 def check_spec(spec: str) -> None:
     """``--logger NAME[=VALUE]``: a known name, and a value only where the logger takes one."""
     name, equals, value = spec.partition("=")
