@@ -30,7 +30,10 @@ def distribution(requirement: str) -> str:
     return re.split(r"[<>=!~\[ ;]", requirement, maxsplit=1)[0].lower().replace("_", "-")
 
 
-EXTRA_MODULES = {"sim/fuzz.py": "hypothesis"}  # a module that is all about an extra's package
+EXTRA_MODULES = {  # modules that are all about an extra's package
+    "sim/fuzz.py": "hypothesis",
+    "sim/fuzz_inputs.py": "hypothesis",
+}
 
 
 def test_every_import_of_the_package_is_a_declared_dependency():
