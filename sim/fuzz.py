@@ -105,13 +105,18 @@ def generate_command_target(argv: list[str]) -> int:
     return _command("sim.generate", "sim.domains.build_domain", [*argv, "--out", "out"])
 
 
+def _read_as(text: str, name: str, read: Callable[[Path], Any]) -> Any:
+    """``read`` a file called ``name`` holding ``text`` (undecodable bytes kept as written)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / name
+        path.write_text(text, encoding="utf-8", errors="surrogateescape")
+        return read(path)
+
+
 def data_file_target(text: str) -> Any:
     from sim.generators.files import read_trajectory_file
 
-    with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "scene.txt"
-        path.write_text(text, encoding="utf-8", errors="surrogateescape")
-        return read_trajectory_file(path)
+    return _read_as(text, "scene.txt", read_trajectory_file)
 
 
 def family_file_target(text: str) -> Any:
@@ -130,19 +135,16 @@ def family_file_target(text: str) -> Any:
 def sdd_file_target(text: str) -> Any:
     from sim.generators.files import read_trajectory_file
 
-    with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "annotations.txt"
-        path.write_text(text, encoding="utf-8", errors="surrogateescape")
+    def read(path: Path) -> Any:
         return read_trajectory_file(path, format="sdd", scale=0.03, every=12)
+
+    return _read_as(text, "annotations.txt", read)
 
 
 def trajnet_file_target(text: str) -> Any:
     from sim.generators.formats import trajnet_scenes
 
-    with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "scenes.ndjson"
-        path.write_text(text, encoding="utf-8", errors="surrogateescape")
-        return trajnet_scenes(path)
+    return _read_as(text, "scenes.ndjson", trajnet_scenes)
 
 
 def config_file_target(text: str) -> int:
