@@ -13,9 +13,11 @@ and counts the outcomes. Needs ``hypothesis`` (the ``test`` extra).
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import io
 import re
+import shutil
 import signal
 import tempfile
 from collections.abc import Callable
@@ -184,6 +186,7 @@ def _finished_run(name: str, scenario: str) -> Path:
         from sim.run import main
 
         root = Path(tempfile.mkdtemp(prefix="c2i-fuzz-"))
+        atexit.register(shutil.rmtree, root, True)  # the process's own runs, gone with it
         argv = ["--scenario", scenario, "--methods", "finetune", "--quick", "--no-record"]
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
             if main([*argv, "--out", str(root / name), "--cache", str(root / "cache")]) != 0:
@@ -193,7 +196,6 @@ def _finished_run(name: str, scenario: str) -> Path:
 
 
 def _damage(path: Path, how: str, other: Path) -> None:
-    import shutil
 
     data = path.read_bytes()
     if how == "truncated":
@@ -214,7 +216,6 @@ def _damage(path: Path, how: str, other: Path) -> None:
 def run_folder_target(case: tuple[int, str, bool]) -> int:
     """A finished run (or, ``interrupted``, one killed after its first task) with one of its
     files damaged, then ``sim.run --resume``: it finishes, or refuses in one line."""
-    import shutil
 
     from sim.run import main
 
