@@ -17,7 +17,15 @@ from pathlib import Path
 from c2inet.errors import InputError, did_you_mean
 from sim.cli import add_experiment_options, execution_of, experiment_options, interrupted, parse
 from sim.cli import parser as command_parser
-from sim.studies.presets import PRESETS, REFERENCE_SEEDS, REPLAY_BUDGET, SEEDS, TRIALS
+from sim.studies.presets import (
+    PRESETS,
+    RACE,
+    RACE_SEEDS,
+    REFERENCE_SEEDS,
+    REPLAY_BUDGET,
+    SEEDS,
+    TRIALS,
+)
 from viz.cli import bounded_float, bounded_int, guarded
 
 
@@ -51,6 +59,20 @@ def add_tuning_options(p) -> None:
         action="store_true",
         help="stop tuning trials worse than the median of the finished ones after a task (from "
         "the second on); cheaper, but it can discard the best trial (docs/runs.md)",
+    )
+    g.add_argument(
+        "--race",
+        type=bounded_int(0, 1000),
+        default=RACE,
+        metavar="TOP",
+        help=f"score each method's TOP best trials again on --race-seeds more seeds and choose "
+        f"the best mean, not the best single score ({RACE}: off)",
+    )
+    g.add_argument(
+        "--race-seeds",
+        type=bounded_int(1, 100),
+        default=RACE_SEEDS,
+        help=f"the seeds each raced trial gets beyond its own ({RACE_SEEDS})",
     )
     g.add_argument("--tune-scenario", help="the tuning curriculum (default: the preset's)")
     g.add_argument(
@@ -155,6 +177,8 @@ def main(argv: list[str] | None = None) -> int:
         args.max_seeds,
         preset.data if preset else {},
         args.tuning_seed,
+        args.race,
+        args.race_seeds,
     )
     if args.estimate:
         print(estimate_table(bench, estimate_bench(bench, execution_of(args))))

@@ -24,6 +24,14 @@ finished before it, so a resumed tuning prunes the same trials; the defaults run
 so the draws after them are measured against them. A pruned trial counts in the budget and is
 never chosen; TPE reads it as worse than the finished. Measured, pruning saved little and could
 discard the best trial (``docs/runs.md``), hence off.
+
+With ``race`` (the best few trials, off by default), the choice is not the best single score:
+after the trials, each method's ``race`` best complete trials are scored again on
+``race_seeds`` more tuning seeds (each drawing its own data and initialisation), and the one with
+the best mean over all its seeds is chosen. One seed's score is noisy enough that two tunings
+picked settings 0.02 to 0.05 m apart on the same evaluation (``docs/benchmark.md``); the race
+spends its extra runs where the noise decides. The race's runs live beside the trials
+(``trials/METHOD/race_NNN_seed_K``) and resume like them; the studies are unchanged by it.
 """
 
 from __future__ import annotations
@@ -65,12 +73,18 @@ class TuneConfig:
     # what the studies' names start with: a benchmark's key, so that a shared storage never
     # mixes the trials of two benchmarks (or two protocols) under one method's name
     study_prefix: str = ""
+    race: int = 0  # the best trials of a method scored again on more seeds (0: none)
+    race_seeds: int = 2  # the seeds each raced trial gets beyond its own
 
     def __post_init__(self):
         if self.trials < 1:
             raise InputError(f"trials must be at least 1, got {self.trials}")
         if self.warmup_tasks < 0:
             raise InputError(f"warmup tasks must be at least 0, got {self.warmup_tasks}")
+        if self.race < 0:
+            raise InputError(f"race must be at least 0 trials, got {self.race}")
+        if self.race_seeds < 1:
+            raise InputError(f"race seeds must be at least 1, got {self.race_seeds}")
 
 
 def check_storage(url: str | None, where: str | None = None) -> None:
@@ -282,10 +296,60 @@ def run_tuning(
         done = run_together(planned, execution, resume=True, argv=[], costs=costs, figures=False)
         for (method, trial), (_, (job,)) in zip(asked, done, strict=True):  # in index order
             tell(studies[method], trial, job.result, tasks)
+    raced = race_best(tune, out, execution, studies, tuned) if tune.race else {}
     chosen = {m: {"settings": {}, "trials": []} for m in base.methods if m not in tuned}
-    chosen |= {method: choice(method, studies[method]) for method in tuned}
+    chosen |= {method: choice(method, studies[method], raced.get(method)) for method in tuned}
     write_text_atomic(out / "tuning.json", json.dumps(chosen, indent=1) + "\n")
     return chosen
+
+
+def race_seed(seed: int, index: int) -> int:
+    """The root seed of a race's ``index``-th extra seed (from 1): drawn from the tuning's seed,
+    so two tunings with different seeds never share a race's data."""
+    derived = np.random.SeedSequence([seed, index, zlib.crc32(b"race")])
+    return int(derived.generate_state(1)[0] % 2**31)
+
+
+def race_best(
+    tune: TuneConfig, out: Path, execution: Execution, studies: dict[str, Any], methods: list[str]
+) -> dict[str, dict[int, list[float]]]:
+    """Score each method's ``tune.race`` best complete trials again on ``tune.race_seeds`` more
+    seeds, all in one round; returns per method and trial number its objectives, its own first
+    (a diverged run's as infinity)."""
+    from optuna.trial import TrialState
+
+    base = replace(tune.base, seeds=1, record=False)
+    entrants, planned = [], []
+    for method in methods:
+        complete = studies[method].get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
+        best = sorted(
+            (t for t in complete if math.isfinite(t.value)), key=lambda t: (t.value, t.number)
+        )
+        for trial in best[: tune.race]:
+            entrants.append((method, trial))
+            settings = as_settings(method, trial.params)
+            settings["train"] = {**settings.get("train", {}), **TRIAL_TRAIN}
+            for index in range(1, tune.race_seeds + 1):
+                config = replace(
+                    base.only(method, layered(base, settings)), seed=race_seed(base.seed, index)
+                )
+                folder = out / "trials" / method / f"race_{trial.number:03d}_seed_{index}"
+                resumed = (folder / "config.json").is_file()
+                label = f"{method} {trial.number} race {index}"
+                label, config, folder, curriculum = plan(label, config, folder, execution, resumed)
+                curriculum.inputs = validation_inputs(curriculum)
+                planned.append((label, config, folder, curriculum))
+    costs = [trial_seconds(out, config.methods[0]) for _, config, *_ in planned]
+    done = iter(run_together(planned, execution, resume=True, argv=[], costs=costs, figures=False))
+    raced: dict[str, dict[int, list[float]]] = {}
+    for method, trial in entrants:
+        scores = [trial.value]
+        for _ in range(tune.race_seeds):
+            _, (job,) = next(done)
+            final = round(float(objective_so_far(job.result)[-1]), 6)
+            scores.append(final if math.isfinite(final) else math.inf)
+        raced.setdefault(method, {})[trial.number] = scores
+    return raced
 
 
 def open_studies(tune: TuneConfig, out: Path, methods: list[str]) -> dict[str, Any]:
@@ -329,21 +393,34 @@ def tell(study, trial, result: Result, tasks: int) -> None:
         study.tell(trial, curve[-1] if math.isfinite(curve[-1]) else math.inf)
 
 
-def choice(method: str, study) -> dict[str, Any]:
+def choice(method: str, study, raced: dict[int, list[float]] | None = None) -> dict[str, Any]:
     """The best complete trial of ``method``'s study (the earliest of equals) as its chosen
-    settings, beside the defaults' objective and every trial, in the order they were asked."""
+    settings, beside the defaults' objective and every trial, in the order they were asked.
+    With ``raced`` (trial number: its objectives over the race's seeds), the raced trial of the
+    best mean is chosen, and ``objective`` is that mean."""
     from optuna.trial import TrialState
 
     trials = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE, TrialState.PRUNED))
     complete = [t for t in trials if t.state == TrialState.COMPLETE]
     best = min(complete, key=lambda t: (t.value, t.number))
+    objective = best.value
+    if raced:
+        means = {number: float(np.mean(scores)) for number, scores in raced.items()}
+        number = min(means, key=lambda n: (means[n], n))
+        best, objective = trials[[t.number for t in trials].index(number)], means[number]
     _check_params(study.study_name, method, best.params)
-    return {
+    record = {
         "settings": as_settings(method, best.params),
-        "objective": _finite(best.value),
+        "objective": _finite(objective),
         "default_objective": _finite(trials[0].value),  # the first trial is the defaults
         "trials": [_trial_record(t) for t in trials],
     }
+    if raced:
+        record["race"] = [
+            {"trial": n, "objectives": [_finite(v) for v in scores], "mean": _finite(means[n])}
+            for n, scores in raced.items()
+        ]
+    return record
 
 
 def objective_so_far(result: Result) -> np.ndarray:
@@ -374,8 +451,8 @@ def _trial_record(trial) -> dict[str, Any]:
 
 def trial_results(out: Path, method: str) -> list[dict[str, Any]]:
     """The ``result.json`` of every finished trial job of ``method`` under the tuning folder
-    ``out``, pruned ones included."""
-    paths = (out / "trials" / method).glob("trial_*/jobs/*/seed_*/result.json")
+    ``out``, pruned ones and the race's runs included."""
+    paths = (out / "trials" / method).glob("*/jobs/*/seed_*/result.json")
     return [json.loads(path.read_text()) for path in paths]
 
 

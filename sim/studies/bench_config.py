@@ -14,7 +14,15 @@ from c2inet.report import REFERENCE
 from sim.experiment.config import ExperimentConfig
 from sim.experiment.tuning import TRIAL_TRAIN, TuneConfig
 from sim.scenario import parse_scenario
-from sim.studies.presets import BATCH, REFERENCE_SEEDS, REPLAY_BUDGET, SEEDS, TRIALS
+from sim.studies.presets import (
+    BATCH,
+    RACE,
+    RACE_SEEDS,
+    REFERENCE_SEEDS,
+    REPLAY_BUDGET,
+    SEEDS,
+    TRIALS,
+)
 
 # what the leaderboard never reads, so evaluation jobs skip it (as tuning trials do)
 LEAN = TRIAL_TRAIN
@@ -35,7 +43,9 @@ class BenchConfig:
     given seeds until its interval is narrower than ``width`` metres or it has ``max_seeds``;
     ``data``: the preset's data sizes (``Preset.data``), under the user's own ``--set data.*``;
     ``tuning_seed``: the tuning's root seed (its sampler, trials and data) where it is not the
-    evaluation's, so two tunings of one benchmark can be compared on the same evaluation."""
+    evaluation's, so two tunings of one benchmark can be compared on the same evaluation;
+    ``race``: each method's best trials scored again on ``race_seeds`` more seeds, the best mean
+    chosen (``sim.experiment.tuning``)."""
 
     base: ExperimentConfig
     name: str = "custom"
@@ -50,6 +60,8 @@ class BenchConfig:
     max_seeds: int = 30
     data: dict[str, Any] = field(default_factory=dict)
     tuning_seed: int | None = None
+    race: int = RACE
+    race_seeds: int = RACE_SEEDS
     given: dict[str, Any] = field(init=False, compare=False, repr=False)  # the user's --set
 
     def __post_init__(self):
@@ -116,11 +128,20 @@ class BenchConfig:
             settings=settings,
             seed=self.base.seed if self.tuning_seed is None else self.tuning_seed,
         )
-        return TuneConfig(base, self.trials, self.storage, self.prune, study_prefix=self.key())
+        return TuneConfig(
+            base,
+            self.trials,
+            self.storage,
+            self.prune,
+            study_prefix=self.key(),
+            race=self.race,
+            race_seeds=self.race_seeds,
+        )
 
     def key(self) -> str:
         """``NAME-HASH:``: the preset and a hash of everything that decides the trials (the
-        tuning curriculum, sizes, settings, budget), so no shared storage mixes benchmarks."""
+        tuning curriculum, sizes, settings, budget), so no shared storage mixes benchmarks. The
+        race is not in it: it reads the trials, never changes them."""
         tuning = replace(self.base, scenario=self.tune_scenario or self.base.scenario)
         if self.tuning_seed is not None:
             tuning = replace(tuning, seed=self.tuning_seed)
@@ -163,6 +184,7 @@ class BenchConfig:
             "storage": self.storage,
             "data": self.data,
             **({} if self.tuning_seed is None else {"tuning_seed": self.tuning_seed}),
+            **({"race": self.race, "race_seeds": self.race_seeds} if self.race else {}),
         }
 
 

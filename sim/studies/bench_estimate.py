@@ -19,8 +19,9 @@ from sim.studies.bench_config import LEAN, BenchConfig, seed_count
 def estimate_bench(bench: BenchConfig, execution: Execution) -> dict[str, Any]:
     """What a benchmark will cost, by the run's own estimate (``sim.experiment.estimate``, in
     CPU seconds of one thread): one tuning trial (``trial``) and one evaluation job (``job``) of
-    each method; the trials each method gets; the CPU seconds of all of them, of the tuning
-    alone, and the wall time with ``execution.jobs`` at a time (the tuning's rounds hold a trial
+    each method; the trials each method gets (a race's runs count as trials); the CPU seconds of
+    all of them, of the tuning alone, and the wall time with ``execution.jobs`` at a time (the
+    tuning's rounds hold a trial
     of every method, so it is shared out evenly; the evaluation's jobs go longest first). The
     decisive pair's extra seeds are not counted: how many it needs is known only after."""
     torch.set_num_threads(execution.threads)
@@ -29,7 +30,8 @@ def estimate_bench(bench: BenchConfig, execution: Execution) -> dict[str, Any]:
     evaluation = replace(bench.base, settings=layered(bench.base, {"train": LEAN}), record=False)
     trial = job_seconds(tuning, validation_inputs(prepare(tuning, execution)).tasks)
     job = job_seconds(evaluation, prepare(evaluation, execution).inputs.tasks)
-    trials = {m: bench.trials if search_space(m) else 0 for m in bench.ranked}
+    runs = bench.trials + min(bench.race, bench.trials) * bench.race_seeds  # the race's too
+    trials = {m: runs if search_space(m) else 0 for m in bench.ranked}
     tuning_cpu = sum(trials[m] * trial[m] for m in bench.ranked)
     seeds = {m: seed_count(bench, m) for m in bench.base.methods}
     evaluation_cpu = sum(seeds[m] * job[m] for m in bench.base.methods)

@@ -91,6 +91,7 @@ def leaderboard(
                 "settings": chosen[method]["settings"],
                 "trials": len(chosen[method]["trials"]),
                 "pruned": sum(t["pruned"] for t in chosen[method]["trials"]),
+                **({"race": chosen[method]["race"]} if "race" in chosen[method] else {}),
             }
         )
     base = bench.base
@@ -109,6 +110,8 @@ def leaderboard(
         "seed": base.seed,
         "tuning_seed": bench.tuning().base.seed,
         "prune": bench.prune,
+        "race": bench.race,
+        "race_seeds": bench.race_seeds,
         "replay_budget": bench.replay_budget,
         "seeds": base.seeds,
         "reference_seeds": bench.reference_seeds,
@@ -144,6 +147,14 @@ def _tuning_seed_text(board: dict[str, Any]) -> str:
     return "" if seed is None or seed == board.get("seed") else f" (tuning seed {seed})"
 
 
+def _race_text(board: dict[str, Any]) -> str:
+    """``; its best N raced over M more seeds`` where the choice is the best mean of a race."""
+    if not board.get("race"):
+        return ""
+    race, seeds = board["race"], board["race_seeds"]
+    return f"; the {race} best raced over {seeds} more seeds each, the best mean chosen"
+
+
 def _interval_text(cell: dict[str, Any]) -> str:
     bounds = cell["interval"]
     text = f"{cell['mean']:.3f}"
@@ -163,7 +174,8 @@ def _protocol_text(board: dict[str, Any]) -> str:
     return (
         f"{sizes}: {board['epochs']} epochs a task at batch {board['batch_scenes']}, K = "
         f"{board['k']}, {board['trials']} Optuna trials a method (its defaults first{pruned}) "
-        f"on `{board['tune_scenario']}`{_tuning_seed_text(board)} scored on validation data only, "
+        f"on `{board['tune_scenario']}`{_tuning_seed_text(board)} scored on validation data only"
+        f"{_race_text(board)}, "
         f"then {board['seeds']} seeds a method, seed s drawing its own data for every method"
         f"{_data_text(board.get('data', {}))}. `--set`: {given}. "
         f"Ranked by final average ADE of the point prediction (K = 1). Intervals are 95 %; p is "

@@ -9,6 +9,8 @@ from typing import Any
 BATCH = 16  # scenes a step: the protocol's (batch 64 at 20 epochs under-trained, docs/benchmark.md)
 SEEDS = 8  # evaluation seeds of every ranked method
 TRIALS = 10  # tuning trials of every method
+RACE = 0  # the best trials a method's tuning scores again on more seeds (0: the best one trial)
+RACE_SEEDS = 2  # the seeds each raced trial gets beyond its own
 REFERENCE_SEEDS = 3  # seeds of each reference
 REPLAY_BUDGET = 200  # scenes every replay method keeps in all
 

@@ -13,7 +13,13 @@ from sim.bench import main
 from sim.experiment import ExperimentConfig
 from sim.experiment.config import Execution, Job
 from sim.experiment.jobs import JobResult, prepare
-from sim.experiment.tuning import TuneConfig, run_tuning, trial_seconds, validation_inputs
+from sim.experiment.tuning import (
+    TuneConfig,
+    race_seed,
+    run_tuning,
+    trial_seconds,
+    validation_inputs,
+)
 from sim.studies.bench_config import BenchConfig
 from sim.studies.bench_estimate import estimate_bench, estimate_table
 from sim.studies.benchmark import BATCH, PRESETS
@@ -314,6 +320,8 @@ def test_the_benchmark_estimate_times_a_trial_as_tuning_runs_it_and_adds_every_j
     assert "| finetune | 10.0 | 3 | 20.0 | 2 | 70 |" in table
     assert "| cv | - | 0 | 20.0 | 2 | 40 |" in table
     assert "3 tuning trials and 4 evaluation jobs, 2 at a time" in table
+    raced = estimate_bench(replace(bench, race=2, race_seeds=2), Execution(jobs=2))
+    assert raced["trials"] == {"finetune": 3 + 2 * 2, "cv": 0}  # the race's runs count
 
 
 def test_the_estimate_flag_prints_the_cost_and_writes_nothing(tmp_path, capsys, monkeypatch):
@@ -359,6 +367,67 @@ def test_a_tuning_seed_reseeds_the_tuning_alone_under_a_key_of_its_own():
     assert first.key() != second.key()
     assert BenchConfig(base, tuning_seed=3).key() == first.key()  # its own seed: the same tuning
     assert "tuning_seed" not in first.to_json() and second.to_json()["tuning_seed"] == 7
+
+
+def test_a_race_chooses_the_best_mean_over_more_seeds_not_the_best_single_score(
+    tmp_path, monkeypatch
+):
+    """``race``: the best trials by their one score run again on more seeds, each a seed of its
+    own (its own data), and the best mean wins. Planted scores rank the trials by learning rate
+    on their own seed and the other way round on the race's, so the race must change the
+    choice; a race never reads the studies' trials again, so the key is the same."""
+    from sim.experiment import tuning
+
+    seen = []
+
+    def planted(planned, execution, resume, argv, costs=None, figures=True):
+        results = []
+        for label, config, folder, _ in planned:
+            lr = config.train_config().lr
+            score = 1 - lr if "race" in label else lr  # the race reverses the order
+            seen.append((label, config.seed, folder.name))
+            matrix = np.array([[score]])
+            results.append(
+                ({}, [JobResult(Job("finetune", 0), Result(["t"], {"ade_k1": matrix}, [{}]))])
+            )
+        return results
+
+    monkeypatch.setattr(tuning, "run_together", planted)
+    base = ExperimentConfig("crowd_noise_0.1", methods=("finetune",), quick=True, record=False)
+    single = run_tuning(TuneConfig(base, trials=4), tmp_path / "a", Execution())["finetune"]
+    raced = run_tuning(TuneConfig(base, trials=4, race=2), tmp_path / "b", Execution())["finetune"]
+    lrs = sorted(t["params"]["train.lr"] for t in single["trials"])
+    assert single["settings"]["train"]["lr"] == lrs[0] and "race" not in single
+    assert raced["settings"]["train"]["lr"] == lrs[1]  # the second best, by its mean
+    asked = [t["params"]["train.lr"] for t in raced["trials"]]
+    assert [r["trial"] for r in raced["race"]] == sorted(range(4), key=asked.__getitem__)[:2]
+    means = [r["mean"] for r in raced["race"]]
+    assert raced["objective"] == pytest.approx(min(means))
+    assert raced["objective"] == pytest.approx((lrs[1] + 2 * (1 - lrs[1])) / 3)
+    race_runs = [(seed, folder) for label, seed, folder in seen if "race" in label]
+    assert len(race_runs) == 2 * 2 and len({seed for seed, _ in race_runs}) == 2
+    assert base.seed not in {seed for seed, _ in race_runs}  # seeds of their own
+    assert {folder for _, folder in race_runs} == {
+        f"race_{r['trial']:03d}_seed_{k}" for r in raced["race"] for k in (1, 2)
+    }
+    assert tuning.race_seed(0, 1) != tuning.race_seed(1, 1)  # two tunings share no race data
+    bench = BenchConfig(replace(base, methods=("finetune", "cv")))
+    assert replace(bench, race=3).key() == bench.key()  # the trials are the same
+    assert "race" not in bench.to_json() and replace(bench, race=3).to_json()["race"] == 3
+    with pytest.raises(InputError, match="race seeds must be at least 1"):
+        TuneConfig(base, race=2, race_seeds=0)
+
+
+def test_a_real_race_runs_and_resumes_to_the_same_choice(tmp_path):
+    base = ExperimentConfig("crowd_noise_0.1", methods=("finetune",), quick=True, record=False)
+    tune, execution = TuneConfig(base, trials=2, race=1, race_seeds=1), Execution(cache=tmp_path)
+    chosen = run_tuning(tune, tmp_path / "t", execution)["finetune"]
+    (entry,) = chosen["race"]
+    folder = tmp_path / "t" / "trials" / "finetune" / f"race_{entry['trial']:03d}_seed_1"
+    config = json.loads((folder / "config.json").read_text())["experiment"]
+    assert config["seed"] == race_seed(base.seed, 1)
+    assert len(entry["objectives"]) == 2 and entry["objectives"][0] != entry["objectives"][1]
+    assert run_tuning(tune, tmp_path / "t", execution)["finetune"] == chosen
 
 
 def test_every_preset_tunes_on_three_tasks_or_more_outside_what_it_evaluates():
