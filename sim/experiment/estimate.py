@@ -28,7 +28,7 @@ from c2inet.evaluation import evaluate, evaluate_all
 from c2inet.methods.base import Method, TaskContext
 from c2inet.trainer import Task, TrainConfig, start_training, train_step
 
-STEPS = 9  # timed training steps per task, after one to warm up (3 varied by 40 %)
+STEPS = 9  # timed training steps per task, after one to warm up
 EPOCH_HOOKS = 2  # epoch hooks timed per task: C2INet fits Eq 8 every second epoch
 
 
@@ -62,13 +62,20 @@ def task_seconds(
     hooks = time.process_time() - started
     if not len(data):  # a task it does not train on (joint-scratch's final_only): time a step
         data = ctx.train
-    times = [
-        _seconds(lambda b=b: train_step(method, ctx, b, train))
-        for b in itertools.islice(batches(data, train.batch_scenes, ctx.rng, ctx.device), STEPS + 1)
-    ]
-    # the median, after a first step that warms up: a moment the machine was busy with something
-    # else does not count
-    per_step = statistics.median(times[1:] or times)
+    steps = itertools.islice(batches(data, train.batch_scenes, ctx.rng, ctx.device), STEPS + 1)
+    times = []
+    while True:  # a step is its batch's making and its training, as a job spends them
+        started = time.process_time()
+        batch = next(steps, None)
+        if batch is None:
+            break
+        train_step(method, ctx, batch, train)
+        times.append(time.process_time() - started)
+    # the mean, after a first step that warms up: a step's cost grows with its scenes' agents
+    # (and attention with their square), so on crowds of unlike sizes (density's 3 to 19, univ's
+    # windows of up to 28) the median of a few steps said 22 to 46 % too little; CPU time keeps a
+    # machine busy with other work out of it
+    per_step = statistics.fmean(times[1:] or times)
     timed = range(min(epochs, EPOCH_HOOKS))
     if timed:  # the mean epoch hook, for every epoch
         hooks += (
