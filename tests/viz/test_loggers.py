@@ -100,6 +100,63 @@ def test_an_unreachable_tracking_server_is_one_error_after_a_bounded_wait(tmp_pa
     assert time.monotonic() - started < 30
 
 
+@pytest.mark.parametrize("answer", ["500", "never"])
+def test_a_failing_or_silent_tracking_server_is_one_error_after_a_bounded_wait(
+    answer, tmp_path, monkeypatch
+):
+    """A server that answers every request with 500, and one that accepts and never answers:
+    one InputError within a bounded wait (the request timeout, one retry), not minutes."""
+    pytest.importorskip("mlflow")
+    import socket
+    import threading
+    import time
+
+    from c2inet.errors import InputError
+
+    monkeypatch.setenv("MLFLOW_HTTP_REQUEST_TIMEOUT", "2")
+    server = socket.create_server(("127.0.0.1", 0))
+    held = []
+
+    def serve():
+        while True:
+            try:
+                connection, _ = server.accept()
+            except OSError:  # closed: the test is over
+                return
+            held.append(connection)
+            if answer == "500":
+                connection.recv(65536)
+                connection.sendall(
+                    b"HTTP/1.1 500 Internal Server Error\r\nContent-Length: 0\r\n"
+                    b"Connection: close\r\n\r\n"
+                )
+                connection.close()
+
+    threading.Thread(target=serve, daemon=True).start()
+    uri = f"http://127.0.0.1:{server.getsockname()[1]}"
+    started = time.monotonic()
+    try:
+        with pytest.raises(InputError, match=rf"--logger mlflow={uri}: cannot use"):
+            prepare_tracking((f"mlflow={uri}",), tmp_path / "runs" / "r")
+    finally:
+        server.close()
+        for connection in held:
+            connection.close()
+    assert time.monotonic() - started < 30
+
+
+def test_wandb_online_without_a_key_is_one_error_naming_the_login(tmp_path, monkeypatch):
+    pytest.importorskip("wandb")
+    from c2inet.errors import InputError
+
+    monkeypatch.setenv("HOME", str(tmp_path))  # no ~/.netrc
+    monkeypatch.delenv("WANDB_API_KEY", raising=False)
+    monkeypatch.setenv("WANDB_MODE", "online")
+    run = tmp_path / "crowd" / "stamp"
+    with pytest.raises(InputError, match=r"--logger wandb=online: W&B cannot start a run.*log in"):
+        WandbLogger(run / "jobs" / "finetune" / "seed_0", 2, ["a"], run_folder=run, uri="online")
+
+
 @pytest.mark.parametrize("name", LOGGERS.names())
 def test_every_registered_logger_passes_the_checker(name, tmp_path, monkeypatch):
     """Each logger, as the registry finds it, takes a job's events and writes its own files."""

@@ -7,7 +7,7 @@ import shutil
 from pathlib import Path
 from typing import Any
 
-from c2inet.errors import InputError
+from c2inet.errors import InputError, one_line
 from viz.loggers.base import Logger, register, scalars
 
 WANDB_MODES = ("offline", "online")
@@ -89,13 +89,20 @@ def _start(
         save_code=False,
         disable_git=True,
     )
-    return wandb.init(
-        dir=folder,
-        project=re.sub(r"[/\\#?%:]", "_", group.parent.name)[:128],
-        group=group.name,
-        name=name,
-        job_type=job_type,
-        config=params or {},
-        settings=settings,
-        reinit="create_new",
-    )
+    try:
+        return wandb.init(
+            dir=folder,
+            project=re.sub(r"[/\\#?%:]", "_", group.parent.name)[:128],
+            group=group.name,
+            name=name,
+            job_type=job_type,
+            config=params or {},
+            settings=settings,
+            reinit="create_new",
+        )
+    except Exception as error:  # no key, no network, a refused login: W&B's own errors
+        why = one_line(str(error).strip().splitlines()[0] if str(error).strip() else "")
+        raise InputError(
+            f"--logger wandb={mode or 'offline'}: W&B cannot start a run ({type(error).__name__}: "
+            f"{why[:160]}); log in (wandb login, or WANDB_API_KEY) or use --logger wandb"
+        ) from None
