@@ -46,6 +46,14 @@ def domain_hash(spec: DomainSpec, root_seed: int, splits: Splits | None = None) 
     return hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()[:16]
 
 
+def cache_path(
+    spec: DomainSpec, root_seed: int, cache_dir: Path, splits: Splits | None = None
+) -> Path:
+    """Where the cache keeps the domain of ``spec`` made from ``root_seed`` (by its content)."""
+    splits = splits or spec.family.splits
+    return cache_dir / f"{spec.name}-{domain_hash(spec, root_seed, splits)}.parquet"
+
+
 def build_domain(
     spec: DomainSpec,
     root_seed: int,
@@ -61,7 +69,7 @@ def build_domain(
     """
     splits = splits or spec.family.splits
     digest = domain_hash(spec, root_seed, splits)
-    cached = cache_dir / f"{spec.name}-{digest}.parquet" if cache_dir else None
+    cached = cache_path(spec, root_seed, cache_dir, splits) if cache_dir else None
     if cached and cached.exists():
         try:
             return read_parquet(cached)

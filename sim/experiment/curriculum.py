@@ -17,7 +17,7 @@ from c2inet.data import OBS_LEN, PRED_LEN, Windows
 from c2inet.errors import InputError
 from c2inet.trainer import Task
 from sim.data import SPLITS, cut_windows, window_members
-from sim.domains import build_domain, rollout_scene
+from sim.domains import build_domain, cache_path, rollout_scene
 from sim.experiment.config import Execution, ExperimentConfig
 from sim.families import Splits
 from sim.generators import Generator, get_generator
@@ -64,6 +64,21 @@ def experiment_tasks(
     )
 
 
+def _splits(spec: DomainSpec, quick: bool) -> Splits | None:
+    """The scene counts a domain is made with: its generator's tiny ones when quick, else its
+    family's (None)."""
+    return Splits(*get_generator(spec.family.generator).quick_splits) if quick else None
+
+
+def is_cached(config: ExperimentConfig, execution: Execution) -> bool:
+    """Whether every domain of ``config`` is in ``execution``'s cache: preparing it generates
+    nothing."""
+    return all(
+        cache_path(spec, config.seed, execution.cache, _splits(spec, config.quick)).is_file()
+        for spec in config.specs
+    )
+
+
 def make_tasks(
     specs: list[DomainSpec],
     seed: int,
@@ -75,8 +90,7 @@ def make_tasks(
     """Domains of the curriculum as learner tasks (windows per split)."""
     tasks, domains = [], []
     for spec in progress_bar(specs, desc="domains", unit="domain", transient=True):
-        quick_splits = Splits(*get_generator(spec.family.generator).quick_splits) if quick else None
-        domain = build_domain(spec, seed, cache, quick_splits, workers, memory_budget)
+        domain = build_domain(spec, seed, cache, _splits(spec, quick), workers, memory_budget)
         splits = {}
         for split in SPLITS:  # training windows every family.stride frames, the others all
             windows = domain.windows(split, spec.family.stride if split == "train" else 1)

@@ -314,14 +314,46 @@ def test_the_benchmark_estimate_times_a_trial_as_tuning_runs_it_and_adds_every_j
     assert all(task.test is task.val for task in trial_tasks) and len(job_tasks) == 2
     assert cost["trials"] == {"finetune": 3, "cv": 0}
     assert cost["tuning_cpu_seconds"] == 3 * 10.0
-    assert cost["cpu_seconds"] == 3 * 10.0 + 2 * (20.0 + 20.0)
-    assert cost["wall_seconds"] == 30.0 / 2 + lanes_seconds([20.0] * 4, 2)
+    made = cost["generation_cpu_seconds"]  # seed 1's data (its own test below)
+    assert cost["cpu_seconds"] == pytest.approx(3 * 10.0 + 2 * (20.0 + 20.0) + made)
+    assert cost["wall_seconds"] == pytest.approx((30.0 + made) / 2 + lanes_seconds([20.0] * 4, 2))
     table = estimate_table(bench, cost)  # what ``sim.bench --estimate`` prints
     assert "| finetune | 10.0 | 3 | 20.0 | 2 | 70 |" in table
     assert "| cv | - | 0 | 20.0 | 2 | 40 |" in table
     assert "3 tuning trials and 4 evaluation jobs, 2 at a time" in table
-    raced = estimate_bench(replace(bench, race=2, race_seeds=2), Execution(jobs=2))
+    raced = estimate_bench(
+        replace(bench, race=2, race_seeds=2), Execution(jobs=2, cache=tmp_path / "cache")
+    )
     assert raced["trials"] == {"finetune": 3 + 2 * 2, "cv": 0}  # the race's runs count
+
+
+def test_the_estimate_counts_making_the_data_the_cache_lacks_and_makes_it_once(
+    tmp_path, monkeypatch
+):
+    """Every evaluation seed draws its own data, made by the driver beside the running jobs:
+    the estimate makes the first seed the cache lacks (timed, so the cache then holds it) and
+    counts it for each such seed; once every seed is cached, it counts nothing."""
+    from sim.experiment.curriculum import is_cached
+    from sim.studies import bench_estimate as bench_module
+
+    monkeypatch.setattr(
+        bench_module, "job_seconds", lambda config, tasks: dict.fromkeys(config.methods, 1.0)
+    )
+    execution = Execution(jobs=2, cache=tmp_path / "cache")
+    base = ExperimentConfig(
+        "crowd_noise_0.1", methods=("finetune", "cv"), seeds=3, quick=True, record=False
+    )
+    bench = BenchConfig(base, trials=1)
+    cost = estimate_bench(bench, execution)
+    assert cost["generation_cpu_seconds"] > 0
+    seeds = [replace(base, seed=s) for s in range(3)]
+    assert [is_cached(config, execution) for config in seeds] == [True, True, False]
+    jobs = 1.0 * 3 * 2 + 1.0 * 1  # every job and the trial
+    assert cost["cpu_seconds"] == pytest.approx(jobs + cost["generation_cpu_seconds"])
+    assert "of them making data" in estimate_table(bench, cost)
+    for config in seeds:  # every seed made: nothing left to make
+        prepare(config, execution)
+    assert estimate_bench(bench, execution)["generation_cpu_seconds"] == 0.0
 
 
 def test_the_estimate_flag_prints_the_cost_and_writes_nothing(tmp_path, capsys, monkeypatch):
