@@ -73,8 +73,9 @@ def task_seconds(
         times.append(time.process_time() - started)
     # the mean, after a first step that warms up: a step's cost grows with its scenes' agents
     # (and attention with their square), so on crowds of unlike sizes (density's 3 to 19, univ's
-    # windows of up to 28) the median of a few steps said 22 to 46 % too little; CPU time keeps a
-    # machine busy with other work out of it
+    # windows of up to 28) a few steps' median sits below what an epoch's steps cost on average
+    # (the estimate was 46 % low on density, 22 % on ETH-UCY); CPU time keeps most of a machine's
+    # other work out of it
     per_step = statistics.fmean(times[1:] or times)
     timed = range(min(epochs, EPOCH_HOOKS))
     if timed:  # the mean epoch hook, for every epoch
