@@ -48,15 +48,21 @@ import numpy as np
 from c2inet.errors import InputError
 from c2inet.files import write_text_atomic
 from c2inet.methods.base import get_method
-from c2inet.metrics import average_seen
 from c2inet.options import Choice, Tunable
-from c2inet.trainer import TRAIN_SPACE, Result, Task
+from c2inet.trainer import TRAIN_SPACE, Result
 from sim.experiment.config import Execution, ExperimentConfig
-from sim.experiment.curriculum import Curriculum, JobInputs
 from sim.experiment.folders import MARKER, mark_run
+from sim.experiment.race import race_best, race_seed  # noqa: F401  (exported)
 from sim.experiment.sweep import Planned, layered, plan, run_together
-
-HOLDOUT = 0.2  # share of a domain's training scenes held out where it has no validation split
+from sim.experiment.trials import (  # noqa: F401  (exported: the trial's parts, as before)
+    HOLDOUT,
+    TRIAL_TRAIN,
+    as_settings,
+    objective_so_far,
+    trial_results,
+    trial_seconds,
+    validation_inputs,
+)
 
 
 @dataclass(frozen=True)
@@ -140,30 +146,6 @@ def _check_params(study: str, method: str, params: dict[str, Any]) -> None:
             )
 
 
-def as_settings(method: str, params: dict[str, Any]) -> dict[str, dict[str, Any]]:
-    """Trial parameters (``train.lr``, ``strength``...) as ``--set`` settings by scope."""
-    settings: dict[str, dict[str, Any]] = {}
-    for key, value in params.items():
-        scope, _, name = key.rpartition(".")
-        settings.setdefault(scope or method, {})[name] = value
-    return settings
-
-
-def validation_inputs(curriculum: Curriculum) -> JobInputs:
-    """The tasks with their test splits replaced by validation data: what a trial is scored
-    on. A domain without a validation split gives up the last fifth of its training scenes."""
-    tasks = []
-    for task in curriculum.inputs.tasks:
-        train, val = task.train, task.val
-        if val is None:
-            kept = max(1, math.floor(len(train) * (1 - HOLDOUT)))
-            if kept >= len(train):
-                raise InputError(f"tuning: {task.name} has too few scenes to hold some out")
-            train, val = train.subset(np.arange(kept)), train.subset(np.arange(kept, len(train)))
-        tasks.append(Task(task.name, train, val, val, task.value))
-    return JobInputs(tasks, [])
-
-
 def startup_trials(trials: int) -> int:
     """The trials of a method drawn at random (its defaults first) before TPE starts."""
     return max(1, trials // 2)
@@ -234,12 +216,6 @@ def stop_bounds(curves: list[list[float]], tasks: int, warmup: int) -> tuple[flo
     )
 
 
-# what a trial's objective (the final point-prediction ADE) never reads, so trials skip it: the
-# diagnostics, the per-epoch validation curves, the latent models' other test-time rules and the
-# tasks not yet learnt
-TRIAL_TRAIN = {"diagnostics": False, "val_every": 0, "test_rules": False, "eval_unseen": False}
-
-
 def run_tuning(
     tune: TuneConfig, out: Path, execution: Execution | None = None
 ) -> dict[str, dict[str, Any]]:
@@ -301,55 +277,6 @@ def run_tuning(
     chosen |= {method: choice(method, studies[method], raced.get(method)) for method in tuned}
     write_text_atomic(out / "tuning.json", json.dumps(chosen, indent=1) + "\n")
     return chosen
-
-
-def race_seed(seed: int, index: int) -> int:
-    """The root seed of a race's ``index``-th extra seed (from 1): drawn from the tuning's seed,
-    so two tunings with different seeds never share a race's data."""
-    derived = np.random.SeedSequence([seed, index, zlib.crc32(b"race")])
-    return int(derived.generate_state(1)[0] % 2**31)
-
-
-def race_best(
-    tune: TuneConfig, out: Path, execution: Execution, studies: dict[str, Any], methods: list[str]
-) -> dict[str, dict[int, list[float]]]:
-    """Score each method's ``tune.race`` best complete trials again on ``tune.race_seeds`` more
-    seeds, all in one round; returns per method and trial number its objectives, its own first
-    (a diverged run's as infinity)."""
-    from optuna.trial import TrialState
-
-    base = replace(tune.base, seeds=1, record=False)
-    entrants, planned = [], []
-    for method in methods:
-        complete = studies[method].get_trials(deepcopy=False, states=(TrialState.COMPLETE,))
-        best = sorted(
-            (t for t in complete if math.isfinite(t.value)), key=lambda t: (t.value, t.number)
-        )
-        for trial in best[: tune.race]:
-            entrants.append((method, trial))
-            settings = as_settings(method, trial.params)
-            settings["train"] = {**settings.get("train", {}), **TRIAL_TRAIN}
-            for index in range(1, tune.race_seeds + 1):
-                config = replace(
-                    base.only(method, layered(base, settings)), seed=race_seed(base.seed, index)
-                )
-                folder = out / "trials" / method / f"race_{trial.number:03d}_seed_{index}"
-                resumed = (folder / "config.json").is_file()
-                label = f"{method} {trial.number} race {index}"
-                label, config, folder, curriculum = plan(label, config, folder, execution, resumed)
-                curriculum.inputs = validation_inputs(curriculum)
-                planned.append((label, config, folder, curriculum))
-    costs = [trial_seconds(out, config.methods[0]) for _, config, *_ in planned]
-    done = iter(run_together(planned, execution, resume=True, argv=[], costs=costs, figures=False))
-    raced: dict[str, dict[int, list[float]]] = {}
-    for method, trial in entrants:
-        scores = [trial.value]
-        for _ in range(tune.race_seeds):
-            _, (job,) = next(done)
-            final = round(float(objective_so_far(job.result)[-1]), 6)
-            scores.append(final if math.isfinite(final) else math.inf)
-        raced.setdefault(method, {})[trial.number] = scores
-    return raced
 
 
 def open_studies(tune: TuneConfig, out: Path, methods: list[str]) -> dict[str, Any]:
@@ -423,12 +350,6 @@ def choice(method: str, study, raced: dict[int, list[float]] | None = None) -> d
     return record
 
 
-def objective_so_far(result: Result) -> np.ndarray:
-    """After each task a trial learnt, its average point-prediction ADE over the tasks so far
-    (the last one, after the last task, is the objective)."""
-    return average_seen(result.matrices["ade_k1"][: len(result.summaries)])  # one a task learnt
-
-
 def _curve(trial) -> list[float]:
     """A finished trial's objective so far after each task it learnt, as it reported them."""
     return [trial.intermediate_values[t] for t in sorted(trial.intermediate_values)]
@@ -447,19 +368,3 @@ def _trial_record(trial) -> dict[str, Any]:
         "tasks": len(curve),
         "objective_so_far": [_finite(v) for v in curve],
     }
-
-
-def trial_results(out: Path, method: str) -> list[dict[str, Any]]:
-    """The ``result.json`` of every finished trial job of ``method`` under the tuning folder
-    ``out``, pruned ones and the race's runs included."""
-    paths = (out / "trials" / method).glob("*/jobs/*/seed_*/result.json")
-    return [json.loads(path.read_text()) for path in paths]
-
-
-def trial_seconds(out: Path, method: str) -> float:
-    """The mean CPU seconds of ``method``'s finished trials under the tuning folder ``out`` that
-    learnt every task (a pruned one's is part of a trial; 0 before the first): what orders the
-    trials and evaluation jobs, longest first."""
-    results = trial_results(out, method)
-    spent = [r.get("cpu_seconds") or 0.0 for r in results if len(r["summaries"]) == len(r["tasks"])]
-    return float(np.mean(spent)) if spent else 0.0

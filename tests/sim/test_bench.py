@@ -408,7 +408,7 @@ def test_a_race_chooses_the_best_mean_over_more_seeds_not_the_best_single_score(
     own (its own data), and the best mean wins. Planted scores rank the trials by learning rate
     on their own seed and the other way round on the race's, so the race must change the
     choice; a race never reads the studies' trials again, so the key is the same."""
-    from sim.experiment import tuning
+    from sim.experiment import race, tuning
 
     seen = []
 
@@ -425,6 +425,7 @@ def test_a_race_chooses_the_best_mean_over_more_seeds_not_the_best_single_score(
         return results
 
     monkeypatch.setattr(tuning, "run_together", planted)
+    monkeypatch.setattr(race, "run_together", planted)
     base = ExperimentConfig("crowd_noise_0.1", methods=("finetune",), quick=True, record=False)
     single = run_tuning(TuneConfig(base, trials=4), tmp_path / "a", Execution())["finetune"]
     raced = run_tuning(TuneConfig(base, trials=4, race=2), tmp_path / "b", Execution())["finetune"]
