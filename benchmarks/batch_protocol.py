@@ -21,7 +21,7 @@ import numpy as np
 from c2inet.significance import paired
 from sim.experiment import Execution, ExperimentConfig, run_experiment
 from sim.experiment.config import parse_settings
-from sim.experiment.tuning import TRIAL_TRAIN
+from sim.experiment.trials import TRIAL_TRAIN
 
 
 def main() -> None:

@@ -22,7 +22,7 @@ from c2inet.methods.base import get_method
 from c2inet.model_config import ModelConfig
 from c2inet.trainer import ContinualTrainer, TrainConfig
 from sim import learner_tasks
-from sim.experiment.tuning import TRIAL_TRAIN
+from sim.experiment.trials import TRIAL_TRAIN
 
 
 def cost(name: str, tasks, config: TrainConfig) -> tuple[float, float]:

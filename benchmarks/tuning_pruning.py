@@ -22,9 +22,11 @@ from dataclasses import replace
 from pathlib import Path
 
 from sim.experiment import ExperimentConfig
-from sim.experiment.bench import PRESETS, BenchConfig
 from sim.experiment.config import Execution
-from sim.experiment.tuning import run_tuning, trial_results
+from sim.experiment.trials import trial_results
+from sim.experiment.tuning import run_tuning
+from sim.studies.bench_config import BenchConfig
+from sim.studies.presets import PRESETS
 
 
 def main() -> None:

@@ -33,7 +33,8 @@ def race_seed(seed: int, index: int) -> int:
 def race_best(
     tune, out: Path, execution: Execution, studies: dict[str, Any], methods: list[str]
 ) -> dict[str, dict[int, list[float]]]:
-    """Score each method's ``tune.race`` best complete trials again on ``tune.race_seeds`` more
+    """Score each method's ``tune.race`` best complete trials (``tune``: the tuning's
+    ``TuneConfig``, untyped here: the tuning imports this module) again on ``tune.race_seeds`` more
     seeds, all in one round; returns per method and trial number its objectives, its own first
     (a diverged run's as infinity)."""
     from optuna.trial import TrialState

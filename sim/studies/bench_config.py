@@ -12,7 +12,8 @@ from c2inet.errors import InputError
 from c2inet.methods.base import get_method
 from c2inet.report import REFERENCE
 from sim.experiment.config import ExperimentConfig
-from sim.experiment.tuning import TRIAL_TRAIN, TuneConfig
+from sim.experiment.trials import TRIAL_TRAIN
+from sim.experiment.tuning import TuneConfig
 from sim.scenario import parse_scenario
 from sim.studies.presets import (
     BATCH,

@@ -13,8 +13,10 @@ from sim.experiment.config import Execution
 from sim.experiment.curriculum import is_cached
 from sim.experiment.estimate import describe, job_seconds, lanes_seconds
 from sim.experiment.jobs import prepare
+from sim.experiment.race import race_seed
 from sim.experiment.sweep import layered
-from sim.experiment.tuning import TRIAL_TRAIN, race_seed, search_space, validation_inputs
+from sim.experiment.trials import TRIAL_TRAIN, validation_inputs
+from sim.experiment.tuning import search_space
 from sim.studies.bench_config import LEAN, BenchConfig, seed_count
 
 
@@ -47,12 +49,12 @@ def estimate_bench(bench: BenchConfig, execution: Execution) -> dict[str, Any]:
     evaluation = replace(bench.base, settings=layered(bench.base, {"train": LEAN}), record=False)
     trial = job_seconds(tuning, validation_inputs(prepare(tuning, execution)).tasks)
     job = job_seconds(evaluation, prepare(evaluation, execution).inputs.tasks)
-    seeds = range(1, bench.base.seeds)  # seed 0's data made above; the pair's extra not known
+    others = range(1, bench.base.seeds)  # seed 0's data made above; the pair's extra not known
     races = range(1, bench.race_seeds + 1) if bench.race else range(0)
-    generation = generation_seconds(
-        [replace(evaluation, seed=evaluation.seed + s) for s in seeds]
-        + [replace(tuning, seed=race_seed(tuning.seed, k)) for k in races],
-        execution,
+    generation = generation_seconds(  # each curriculum timed on its own: unlike sizes
+        [replace(evaluation, seed=evaluation.seed + s) for s in others], execution
+    ) + generation_seconds(
+        [replace(tuning, seed=race_seed(tuning.seed, k)) for k in races], execution
     )
     runs = bench.trials + min(bench.race, bench.trials) * bench.race_seeds  # the race's too
     trials = {m: runs if search_space(m) else 0 for m in bench.ranked}

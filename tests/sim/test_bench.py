@@ -13,13 +13,9 @@ from sim.bench import main
 from sim.experiment import ExperimentConfig
 from sim.experiment.config import Execution, Job
 from sim.experiment.jobs import JobResult, prepare
-from sim.experiment.tuning import (
-    TuneConfig,
-    race_seed,
-    run_tuning,
-    trial_seconds,
-    validation_inputs,
-)
+from sim.experiment.race import race_seed
+from sim.experiment.trials import trial_seconds, validation_inputs
+from sim.experiment.tuning import TuneConfig, run_tuning
 from sim.studies.bench_config import BenchConfig
 from sim.studies.bench_estimate import estimate_bench, estimate_table
 from sim.studies.benchmark import BATCH, PRESETS
@@ -443,7 +439,7 @@ def test_a_race_chooses_the_best_mean_over_more_seeds_not_the_best_single_score(
     assert {folder for _, folder in race_runs} == {
         f"race_{r['trial']:03d}_seed_{k}" for r in raced["race"] for k in (1, 2)
     }
-    assert tuning.race_seed(0, 1) != tuning.race_seed(1, 1)  # two tunings share no race data
+    assert race.race_seed(0, 1) != race.race_seed(1, 1)  # two tunings share no race data
     bench = BenchConfig(replace(base, methods=("finetune", "cv")))
     assert replace(bench, race=3).key() == bench.key()  # the trials are the same
     assert "race" not in bench.to_json() and replace(bench, race=3).to_json()["race"] == 3

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from c2inet.errors import InputError, did_you_mean
+from c2inet.errors import InputError, did_you_mean, one_line
 from c2inet.registry import Registry
 
 ROW_METRICS = ("ade", "fde", "ade_k1", "fde_k1", "ade_draw", "fde_draw")
@@ -63,6 +63,12 @@ REGISTRY: Registry[type[Logger]] = Registry(
 def register(cls: type[Logger]) -> type[Logger]:
     """Class decorator: add a logger to the registry under its ``name``."""
     return REGISTRY.add(cls.__dict__.get("name", ""), cls)
+
+
+def failure(error: Exception) -> str:
+    """A tracker's error as one short line: its type and the first line of its message."""
+    text = str(error).strip()
+    return f"{type(error).__name__}: {one_line(text.splitlines()[0] if text else '')[:160]}"
 
 
 def check_spec(spec: str) -> None:

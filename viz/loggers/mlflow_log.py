@@ -9,8 +9,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from c2inet.errors import InputError, one_line
-from viz.loggers.base import Logger, register, scalars
+from c2inet.errors import InputError
+from viz.loggers.base import Logger, failure, register, scalars
 
 # MLflow's HTTP client waits minutes for a server by default (7 retries, 120 s timeouts)
 MLFLOW_PATIENCE = {
@@ -85,10 +85,9 @@ class MLflowLogger(Logger):
             artifacts = None if uri else (group / "mlartifacts").as_uri()
             return client, client.create_experiment(name, artifact_location=artifacts)
         except Exception as error:  # a refused, failing or absent server, a bad store: its own
-            why = one_line(str(error).strip().splitlines()[0] if str(error).strip() else "")
             raise InputError(
                 f"--logger mlflow{'=' + uri if uri else ''}: cannot use the tracking store "
-                f"{target[:80]} ({type(error).__name__}: {why[:160]})"
+                f"{target[:80]} ({failure(error)})"
             ) from None
 
     def __call__(self, event: str, data: dict[str, Any]) -> None:

@@ -7,8 +7,8 @@ import shutil
 from pathlib import Path
 from typing import Any
 
-from c2inet.errors import InputError, one_line
-from viz.loggers.base import Logger, register, scalars
+from c2inet.errors import InputError
+from viz.loggers.base import Logger, failure, register, scalars
 
 WANDB_MODES = ("offline", "online")
 
@@ -101,8 +101,7 @@ def _start(
             reinit="create_new",
         )
     except Exception as error:  # no key, no network, a refused login: W&B's own errors
-        why = one_line(str(error).strip().splitlines()[0] if str(error).strip() else "")
         raise InputError(
-            f"--logger wandb={mode or 'offline'}: W&B cannot start a run ({type(error).__name__}: "
-            f"{why[:160]}); log in (wandb login, or WANDB_API_KEY) or use --logger wandb"
+            f"--logger wandb={mode or 'offline'}: W&B cannot start a run ({failure(error)}); "
+            "log in (wandb login, or WANDB_API_KEY) or use --logger wandb"
         ) from None
