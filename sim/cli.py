@@ -13,7 +13,7 @@ from c2inet.errors import InputError, did_you_mean
 from sim.config_file import config_defaults
 from sim.experiment.backends import BACKENDS
 from sim.experiment.defaults import DEFAULT_METHODS
-from sim.families import available_families, load_family
+from sim.families import DATA_ROOT_ENV, available_families, load_family
 from sim.generators import get_generator
 from viz.cli import bounded_float, bounded_int, config_path, plain_parser
 
@@ -57,6 +57,12 @@ def parser(
         action="append",
         default=[],
         help="extra folder of family TOML files (repeatable)",
+    )
+    p.add_argument(
+        "--data-root",
+        type=Path,
+        metavar="DIR",
+        help=f"folder of the datasets that cannot ship (SDD, TrajNet++; default ${DATA_ROOT_ENV})",
     )
     p.add_argument(
         "--config",
@@ -118,6 +124,10 @@ def parse(
             value = defaults[dest]
             setattr(args, dest, value if isinstance(value, list) else [value])
     args.config_settings = settings
+    if args.data_root is not None:  # through the environment, so every job's process reads it
+        if not args.data_root.is_dir():
+            raise InputError(f"--data-root {args.data_root}: not a folder")
+        os.environ[DATA_ROOT_ENV] = str(args.data_root.resolve())
     if args.list:
         print(listing(args.list, args.scenarios_dir))
         return None

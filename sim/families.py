@@ -13,12 +13,16 @@ A family file looks like::
     val = 50
     test = 100
 
-Name-valued families (real data) have ``[values.NAME]`` tables instead of ``knob``.
+Name-valued families (real data) have ``[values.NAME]`` tables instead of ``knob``. A family of
+a dataset that cannot ship (SDD, TrajNet++) says ``data_root = "sdd"``: its file patterns are
+relative to that folder of the data root (``--data-root DIR`` or ``$C2I_DATA_ROOT``), and
+``download`` says what to put there.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import os
 import re
 import sys
 import tomllib
@@ -34,6 +38,7 @@ from sim.generators import get_generator
 # the built-in families (and the real data they read) ship inside the package
 SCENARIOS_DIR = Path(str(resources.files("sim").joinpath("scenarios")))
 _FAMILY_NAME = re.compile(r"^[a-z][a-z0-9_]*$")
+DATA_ROOT_ENV = "C2I_DATA_ROOT"  # the folder that holds the datasets no family can ship
 
 
 @dataclass(frozen=True)
@@ -67,6 +72,8 @@ class Family:
     values: dict[str, dict[str, Any]] = field(default_factory=dict)
     unit: str = "m"  # of the positions: metres, or pixels (a recording not yet scaled)
     stride: int = 1  # frames between the starts of two training windows of a scene
+    data_root: str = ""  # the data root's folder its files are relative to ("": its own folder)
+    download: str = ""  # what to put in that folder, and where to get it
 
     @property
     def value_names(self) -> tuple[str, ...]:
@@ -81,7 +88,25 @@ class Family:
             merged[self.knob] = value
         generator = get_generator(self.generator)
         knobs = build(generator.Knobs, merged, f"{self.path.name} value {value}")
-        return generator.resolve(knobs, self.path.parent)
+        try:
+            return generator.resolve(knobs, self.files_dir())
+        except InputError as error:
+            if not self.data_root or str(error).startswith("family "):
+                raise
+            raise InputError(f"family {self.name}: {error} (expected {self.download})") from None
+
+    def files_dir(self) -> Path:
+        """The folder the family's file patterns are relative to: its TOML's, or its dataset's
+        folder in the data root, which must exist (else one line says what to put there)."""
+        if not self.data_root:
+            return self.path.parent
+        root = os.environ.get(DATA_ROOT_ENV, "")
+        folder = Path(root).expanduser() / self.data_root
+        if not root or not folder.is_dir():
+            where = f"{folder}" if root else f"DATA_ROOT/{self.data_root}"
+            given = "" if root else f" (give --data-root DATA_ROOT or set ${DATA_ROOT_ENV})"
+            raise InputError(f"family {self.name}: reads {self.download} from {where}{given}")
+        return folder
 
 
 _noticed: set[Path] = set()  # built-in families replaced by a user's copy, said once
@@ -112,7 +137,7 @@ def available_families(extra_dirs: list[Path]) -> dict[str, Path]:
 MAX_FAMILY_BYTES = 1_000_000
 VALUE_NAME = r"[a-z0-9][a-z0-9_-]*(\.[a-z0-9_-]+)*"  # e.g. "univ", "0.1": safe in file names
 _FAMILY_KEYS = {"description", "generator", "knob", "seed_offset", "knobs", "splits", "values"}
-_FAMILY_KEYS |= {"unit", "windows"}
+_FAMILY_KEYS |= {"unit", "windows", "data_root", "download"}
 UNITS = {"m": "metres", "px": "pixels"}  # what a family's positions are in
 
 
@@ -173,6 +198,11 @@ def load_family(path: Path) -> Family:
     unit = raw.get("unit", "m")
     if unit not in UNITS:
         raise InputError(f"{path}: unit {unit!r}: expected one of {', '.join(UNITS)}")
+    data_root, download = raw.get("data_root", ""), raw.get("download", "")
+    if not isinstance(data_root, str) or not re.fullmatch(r"[a-z0-9_]*", data_root):
+        raise InputError(f"{path}: data_root {data_root!r}: a folder name of a-z, 0-9 and '_'")
+    if data_root and not (isinstance(download, str) and download):
+        raise InputError(f"{path}: a family with a data_root says what to download there")
     seed_offset = raw.get("seed_offset", 0)
     if isinstance(seed_offset, bool) or not isinstance(seed_offset, int) or seed_offset < 0:
         raise InputError(f"{path}: seed_offset must be a non-negative integer")
@@ -188,6 +218,8 @@ def load_family(path: Path) -> Family:
         values=values,
         unit=unit,
         stride=stride,
+        data_root=data_root,
+        download=str(download),
     )
     if not values:  # the defaults alone must already be a valid knob set
         build(generator.Knobs, defaults, f"{path} [knobs]")

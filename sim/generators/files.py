@@ -26,7 +26,13 @@ from c2inet.files import file_digest
 from c2inet.options import check_range
 from sim.data import SPLITS, Domain, Scene
 from sim.generators.base import Generator
-from sim.generators.formats import MAX_CELLS, MAX_COORDINATE, sdd_rows, trajnet_scenes
+from sim.generators.formats import (
+    MAX_CELLS,
+    MAX_COORDINATE,
+    sdd_rows,
+    trajnet_scenes,
+    video_scales,
+)
 from sim.stats import motion_stats, proximity_stats
 
 WINDOW = OBS_LEN + PRED_LEN
@@ -45,6 +51,7 @@ class FilesKnobs:
     split_gaps: bool = False  # a track that skips frames continues as a new track
     format: str = "ethucy"  # ethucy (also SocialVAE's SDD text), sdd (raw annotations), trajnetpp
     scale: float = 1.0  # metres per unit of the file: each SDD video's own, for its pixels
+    scales: str = ""  # sdd: a YAML of every video's metres per pixel (OpenTraj's), over scale
     every: int = 1  # keep the frames whose id is a multiple (12: SDD's 30 fps as 2.5 fps)
     labels: tuple[str, ...] = ("Pedestrian",)  # sdd: the classes kept (Biker, Cart, Car...)
 
@@ -56,6 +63,8 @@ class FilesKnobs:
         check_range("every", self.every, 1, 1000)
         if self.format not in FORMATS:
             raise InputError(f"format {self.format!r}: expected one of {', '.join(FORMATS)}")
+        if self.scales and self.format != "sdd":
+            raise InputError(f"scales {self.scales!r}: only SDD's videos have their own scales")
 
 
 def read_recording(path: Path, knobs: dict[str, Any]) -> list[Scene]:
@@ -63,6 +72,8 @@ def read_recording(path: Path, knobs: dict[str, Any]) -> list[Scene]:
     if knobs.get("format") == "trajnetpp":
         return trajnet_scenes(path, knobs.get("scale", 1.0), knobs.get("every", 1))
     reading = {key: knobs[key] for key in ("format", "scale", "every", "labels") if key in knobs}
+    if "scales" in knobs:
+        reading["scale"] = knobs["scales"][str(path)]
     return read_trajectory_file(path, knobs["split_gaps"], **reading)
 
 
@@ -277,6 +288,9 @@ class FilesGenerator(Generator):
                         raise InputError(f"{split} pattern {pattern!r}: {match} is no regular file")
                 paths.extend(str(m.resolve()) for m in matches)
             out[split] = paths
+        if knobs.scales:
+            files = [path for split in SPLITS for path in out[split]]
+            out["scales"] = video_scales(base_dir / knobs.scales, files)
         return out
 
     @classmethod

@@ -7,7 +7,9 @@
   "p", "x", "y"}}`` lines): one scene per scene record, its primary agent in the first column.
 
 The converted SDD text that SocialVAE-style repositories share is ETH-UCY's four columns in
-metres, read by the ETH-UCY reader itself. JSON is parsed, never unpickled.
+metres, read by the ETH-UCY reader itself. SDD's metres per pixel, one per video, come from a
+YAML file as OpenTraj ships it (``estimated_scales.yaml``: ``LOCATION: {videoN: {scale: s}}``).
+JSON and YAML are parsed (YAML's safe subset), never unpickled.
 """
 
 from __future__ import annotations
@@ -16,12 +18,14 @@ import json
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 from c2inet.errors import InputError, quote
 from sim.data import Scene
 
 MAX_COORDINATE = 1e6  # metres: beyond it a coordinate is a unit error, and statistics overflow
 MAX_CELLS = 2_000_000  # frames x agents of one dense scene (32 MB)
+MAX_SCALES_BYTES = 1_000_000  # OpenTraj's scales file is 3 kB
 
 SDD_COLUMNS = "track xmin ymin xmax ymax frame lost occluded generated label"
 
@@ -51,6 +55,28 @@ def sdd_rows(path: Path, start: int, lines: list[str], labels: tuple[str, ...]) 
     if bad.any():
         raise InputError(f"{path}:{int(out[np.argmax(bad), 4])}: non-finite value")
     return out
+
+
+def video_scales(path: Path, files: list[str]) -> dict[str, float]:
+    """Each SDD annotation file's metres per pixel: the scale of its video (its folder) at its
+    location (the folder above) in the YAML file ``path``; one error line for anything missing."""
+    try:
+        if path.stat().st_size > MAX_SCALES_BYTES:
+            raise InputError(f"{path}: over {MAX_SCALES_BYTES // 1000} kB; no scales file is")
+        table = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, yaml.YAMLError, RecursionError) as error:
+        reason = str(error).splitlines()[0] if str(error) else type(error).__name__
+        raise InputError(f"{path}: cannot read the videos' scales: {reason}") from None
+    scales = {}
+    for file in files:
+        location, video = Path(file).parent.parent.name, Path(file).parent.name
+        entry = table.get(location, {}).get(video) if isinstance(table, dict) else None
+        if isinstance(entry, dict):
+            entry = entry.get("scale")
+        if isinstance(entry, bool) or not isinstance(entry, int | float) or not 0 < entry < 1e3:
+            raise InputError(f"{path}: no scale in (0, 1000) for {location} {video} ({file})")
+        scales[file] = float(entry)
+    return scales
 
 
 def trajnet_scenes(path: Path, scale: float = 1.0, every: int = 1) -> list[Scene]:

@@ -117,6 +117,20 @@ def test_trajnetpp_family_windows_every_scene(tmp_path):
     assert domain.stats["mean_speed"] == pytest.approx(0.25)  # 0.1 m a frame of 0.4 s
 
 
+def test_the_builtin_trajnetpp_family_reads_its_groups_from_the_data_root(tmp_path, monkeypatch):
+    """trajnetpp_students trains on students001 and tests on students003 of the data root."""
+    real = tmp_path / "trajnetpp" / "train" / "real_data"
+    real.mkdir(parents=True)
+    trajnet_fixture(real).rename(real / "crowds_students001.ndjson")
+    trajnet_fixture(real).rename(real / "crowds_students003.ndjson")
+    monkeypatch.setenv("C2I_DATA_ROOT", str(tmp_path))
+    (spec,) = parse_scenario("trajnetpp_students")
+    assert [Path(p).name for p in spec.knobs["test"]] == ["crowds_students003.ndjson"]
+    domain = build_domain(spec, 0)
+    assert len(domain.scenes["train"]) == len(domain.scenes["test"]) == 2
+    assert domain.stats["mean_speed"] == pytest.approx(0.25)
+
+
 @pytest.mark.parametrize(
     "line, message",
     [
@@ -168,41 +182,83 @@ def test_unknown_format_is_refused(tmp_path):
         parse_scenario("bad_a", [tmp_path])
 
 
-def sdd_example(folder: Path) -> None:
-    """examples/sdd.toml in ``folder``, above seven bookstore videos of annotations."""
-    example = Path(__file__).parents[2] / "examples" / "sdd.toml"
-    (folder / "sdd.toml").write_text(example.read_text())
+def sdd_root(root: Path, monkeypatch, scales: str | None = None) -> None:
+    """A data root whose sdd/ holds seven bookstore videos of annotations (and ``scales``, the
+    text of an estimated_scales.yaml), named by $C2I_DATA_ROOT as --data-root would."""
     for video in range(7):
-        annotations = folder / "annotations" / "bookstore" / f"video{video}"
+        annotations = root / "sdd" / "annotations" / "bookstore" / f"video{video}"
         annotations.mkdir(parents=True)
         (annotations / "annotations.txt").write_text(sdd_annotations(300))
+    if scales is not None:
+        (root / "sdd" / "estimated_scales.yaml").write_text(scales)
+    monkeypatch.setenv("C2I_DATA_ROOT", str(root))
 
 
-def test_the_sdd_example_family_reads_a_location_across_its_videos(tmp_path):
-    """examples/sdd.toml in the folder above SDD's annotations/: bookstore trains on videos 0
+def test_the_builtin_sdd_px_family_reads_a_location_across_its_videos(tmp_path, monkeypatch):
+    """sdd_px (the paper's Table 3 in pixels) in the data root: bookstore trains on videos 0
     to 5 (a wildcard in a folder name) and tests on video 6."""
-    sdd_example(tmp_path)
-    (spec,) = parse_scenario("sdd_bookstore", [tmp_path])
+    sdd_root(tmp_path, monkeypatch)
+    (spec,) = parse_scenario("sdd_px_bookstore")
     assert [Path(p).parent.name for p in spec.knobs["train"]] == [f"video{i}" for i in range(6)]
     domain = build_domain(spec, 0)
     assert len(domain.scenes["train"]) == 6 and len(domain.scenes["test"]) == 1
     assert domain.stats["mean_speed"] == pytest.approx(12 / 0.4)  # pixels per second
 
 
-def test_a_pixel_familys_run_reports_pixels_and_a_mix_of_units_is_refused(tmp_path, capsys):
+def test_the_builtin_sdd_family_gives_each_video_its_own_metres(tmp_path, monkeypatch):
+    """sdd scales every video by its own entry of the scales file: video v at 0.01 (v + 1) m
+    a pixel walks 30 (0.01 (v + 1)) m/s; one missing video is one line naming it."""
+    videos = [f"  video{v}:\n    certainty: 1.0\n    scale: {0.01 * (v + 1)}\n" for v in range(7)]
+    sdd_root(tmp_path, monkeypatch, "bookstore:\n" + "".join(videos))
+    (spec,) = parse_scenario("sdd_bookstore")
+    domain = build_domain(spec, 0)
+    for v, scene in enumerate(domain.scenes["train"]):
+        walker = scene.positions[:, scene.agent_ids.tolist().index(0)]
+        np.testing.assert_allclose(np.diff(walker[:, 0]), 12 * 0.01 * (v + 1))
+    assert spec.family.unit == "m"
+    (tmp_path / "sdd" / "estimated_scales.yaml").write_text("bookstore:\n" + "".join(videos[:6]))
+    with pytest.raises(InputError, match="no scale in .* for bookstore video6"):
+        parse_scenario("sdd_bookstore")
+    (tmp_path / "sdd" / "estimated_scales.yaml").write_text("bookstore: [unclosed\n")
+    with pytest.raises(InputError, match="cannot read the videos' scales"):
+        parse_scenario("sdd_bookstore")
+
+
+def test_a_dataset_family_without_its_data_says_what_to_download(tmp_path, monkeypatch, capsys):
+    from sim.run import main
+
+    monkeypatch.delenv("C2I_DATA_ROOT", raising=False)
+    with pytest.raises(InputError, match="reads the Stanford Drone .* from DATA_ROOT/sdd .give"):
+        parse_scenario("sdd_px_bookstore")
+    argv = ["--scenario", "trajnetpp_students", "--methods", "cv", "--quick", "--no-record"]
+    assert main([*argv, "--data-root", str(tmp_path)]) == 2
+    error = capsys.readouterr().err.strip()
+    assert error.count("\n") == 0 and f"{tmp_path}/trajnetpp" in error and "ndjson" in error
+    (tmp_path / "trajnetpp" / "train" / "real_data").mkdir(parents=True)
+    assert main([*argv, "--data-root", str(tmp_path)]) == 2
+    error = capsys.readouterr().err.strip()
+    assert "crowds_students001.ndjson" in error and "releases" in error  # the file, the source
+    assert main([*argv, "--data-root", str(tmp_path / "nowhere")]) == 2
+    error = capsys.readouterr().err
+    assert "--data-root" in error and "not a folder" in error
+
+
+def test_a_pixel_familys_run_reports_pixels_and_a_mix_of_units_is_refused(
+    tmp_path, capsys, monkeypatch
+):
     from sim.experiment import ExperimentConfig
     from sim.run import main
 
-    sdd_example(tmp_path)
+    sdd_root(tmp_path, monkeypatch)
     out = tmp_path / "run"
-    argv = ["--scenarios-dir", str(tmp_path), "--scenario", "sdd_bookstore", "--methods", "cv"]
+    argv = ["--data-root", str(tmp_path), "--scenario", "sdd_px_bookstore", "--methods", "cv"]
     assert main([*argv, "--quick", "--no-record", "--out", str(out)]) == 0
     assert "ADE/FDE in pixels" in capsys.readouterr().out
     assert "ADE/FDE in pixels" in (out / "report.md").read_text()
     assert "metres" not in (out / "report.md").read_text()
     assert json.loads((out / "metrics.json").read_text())["unit"] == "px"
     with pytest.raises(InputError, match="mixes families in m and px"):
-        ExperimentConfig("sdd_bookstore+crowd_noise_0.1", ("cv",), scenarios_dir=(tmp_path,))
+        ExperimentConfig("sdd_px_bookstore+crowd_noise_0.1", ("cv",))
 
 
 def test_every_that_the_files_frame_step_does_not_divide_is_refused(tmp_path):
