@@ -81,7 +81,11 @@ def add_tuning_options(p) -> None:
         help="the tuning's own root seed (its sampler, trials and data; default --seed): a "
         "second tuning of one benchmark, evaluated on the same seeds, shows whether it selects",
     )
-    g.add_argument("--storage", help="an Optuna storage URL shared by trials (default: SQLite)")
+    g.add_argument(
+        "--storage",
+        help="the trials' Optuna storage: a database URL, or journal:FILE (Optuna's journal, a "
+        "file processes on several machines may share); default: SQLite in --out",
+    )
 
 
 def add_evaluation_options(p) -> None:

@@ -91,18 +91,36 @@ class TuneConfig:
             raise InputError(f"race seeds must be at least 1, got {self.race_seeds}")
 
 
+JOURNAL = "journal:"  # --storage journal:FILE: Optuna's journal, for writers on many machines
+
+
+def storage_of(url: str) -> Any:
+    """What Optuna opens for ``--storage``: Optuna's journal for ``journal:FILE`` (a file that
+    processes on several machines may share; its appends are locked), else the database URL."""
+    if not url.startswith(JOURNAL):
+        return url
+    from optuna.storages import JournalStorage
+    from optuna.storages.journal import JournalFileBackend
+
+    return JournalStorage(JournalFileBackend(str(Path(url[len(JOURNAL) :]).expanduser())))
+
+
 def check_storage(url: str | None, where: str | None = None) -> None:
-    """Refuse, in one line, a ``--storage`` URL Optuna cannot open, or an SQLite file that is no
-    database or holds another application's tables (it would gain Optuna's); nothing is
-    claimed before. ``where`` names the store in the error (default: the ``--storage`` flag)."""
+    """Refuse, in one line, a ``--storage`` Optuna cannot open: a URL that is none, an SQLite
+    file that is no database or holds another application's tables (it would gain Optuna's), a
+    journal whose folder is missing or whose records are not Optuna's; nothing is claimed
+    before. ``where`` names the store in the error (default: the ``--storage`` flag)."""
     if url is None:
+        return
+    where = where or f"--storage {url[:80]!r}"
+    if url.startswith(JOURNAL):
+        _check_journal(Path(url[len(JOURNAL) :]).expanduser(), where)
         return
     import sqlite3
 
     import optuna
     from sqlalchemy.engine import make_url
 
-    where = where or f"--storage {url[:80]!r}"
     try:
         parsed = make_url(url)
     except Exception as error:  # SQLAlchemy's parser: whatever it raises
@@ -122,6 +140,28 @@ def check_storage(url: str | None, where: str | None = None) -> None:
         optuna.storages.RDBStorage(url)
     except Exception as error:  # the driver's and Optuna's: whatever they raise
         raise InputError(f"{where}: cannot be opened ({type(error).__name__})") from None
+
+
+def _check_journal(path: Path, where: str) -> None:
+    """A journal's folder exists; an existing journal is a file of Optuna's records (read
+    without writing: a file of anything else is refused as it is)."""
+    if not path.parent.is_dir():
+        raise InputError(f"{where}: the folder {path.parent} does not exist")
+    if not path.exists():
+        return
+    if not path.is_file():
+        raise InputError(f"{where}: {path} is no regular file")
+    try:
+        with path.open("rb") as file:
+            first = file.readline()
+        record = json.loads(first) if first else {}
+        if first and not (first.endswith(b"\n") and isinstance(record, dict)):
+            raise ValueError("not a record")  # Optuna would skip it, then append to it
+        if first and "op_code" not in record:
+            raise ValueError("not a record")
+        storage_of(f"{JOURNAL}{path}").get_all_studies()
+    except Exception as error:  # the file, or Optuna's replay of its records: whatever it raises
+        raise InputError(f"{where}: {path} is no Optuna journal ({type(error).__name__})") from None
 
 
 def search_space(method: str) -> dict[str, Tunable | Choice]:
@@ -284,7 +324,7 @@ def open_studies(tune: TuneConfig, out: Path, methods: list[str]) -> dict[str, A
     import optuna
     from optuna.trial import TrialState
 
-    storage = tune.storage or f"sqlite:///{(out / 'tuning.db').resolve()}"
+    storage = storage_of(tune.storage or f"sqlite:///{(out / 'tuning.db').resolve()}")
     if tune.storage is None:  # our own store, damaged since: one line, not the driver's error
         check_storage(storage, f"the tuning store {out / 'tuning.db'} (delete it to tune again)")
     studies = {}

@@ -365,17 +365,21 @@ def test_the_estimate_flag_prints_the_cost_and_writes_nothing(tmp_path, capsys, 
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cache"]  # no benchmark folder
 
 
-def test_a_shared_storage_keeps_two_benchmarks_apart(tmp_path):
+@pytest.mark.parametrize("kind", ["sqlite", "journal"])
+def test_a_shared_storage_keeps_two_benchmarks_apart(tmp_path, kind):
     """Two benchmarks tuned on the same curriculum but evaluating different ones, into one
-    database: each runs its own trials under its own studies (the second once took the first's
-    and ran none)."""
+    database or one journal file: each runs its own trials under its own studies (the second
+    once took the first's and ran none)."""
     import optuna
 
-    storage = f"sqlite:///{tmp_path / 'shared.db'}"
+    from sim.experiment.tuning import storage_of
+
+    url = f"sqlite:///{tmp_path / 'shared.db'}" if kind == "sqlite" else f"journal:{tmp_path / 'j'}"
+    storage = storage_of(url)
     execution = Execution(cache=tmp_path / "cache")
     for name, scenario in (("a", "crowd_noise_0.1,0.2"), ("b", "crowd_noise_0.1,0.3")):
         base = ExperimentConfig(scenario, methods=("finetune",), quick=True, record=False)
-        bench = BenchConfig(base, name=name, trials=1, storage=storage)
+        bench = BenchConfig(base, name=name, trials=1, storage=url)
         run_tuning(bench.tuning(), tmp_path / name, execution)
         assert (tmp_path / name / "trials" / "finetune" / "trial_000" / "metrics.json").is_file()
     names = sorted(optuna.get_all_study_names(storage))
@@ -513,6 +517,8 @@ def test_a_bad_storage_is_one_line_before_anything_is_written(tmp_path, capsys):
         f"sqlite:///{tmp_path / 'notes.txt'}": "no SQLite database",
         f"sqlite:///{foreign}": "another application's tables",
         f"sqlite:///{tmp_path / 'missing' / 'x.db'}": "cannot be opened",
+        f"journal:{tmp_path / 'missing' / 'journal'}": "folder",
+        f"journal:{tmp_path / 'notes.txt'}": "no Optuna journal",
     }
     for url, message in cases.items():
         out = tmp_path / "bench"
@@ -521,6 +527,7 @@ def test_a_bad_storage_is_one_line_before_anything_is_written(tmp_path, capsys):
         err = capsys.readouterr().err
         assert message in err and len(err.strip().splitlines()) == 1 and not out.exists()
     assert foreign.read_bytes() == before
+    assert (tmp_path / "notes.txt").read_text() == "not a database"
 
 
 def test_a_planted_trial_outside_the_search_space_is_refused_not_chosen(tmp_path):
