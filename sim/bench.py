@@ -23,6 +23,7 @@ from sim.studies.presets import (
     RACE_SEEDS,
     REFERENCE_SEEDS,
     REPLAY_BUDGET,
+    SAMPLER,
     SEEDS,
     TRIALS,
 )
@@ -73,6 +74,13 @@ def add_tuning_options(p) -> None:
         type=bounded_int(1, 100),
         default=RACE_SEEDS,
         help=f"the seeds each raced trial gets beyond its own ({RACE_SEEDS})",
+    )
+    g.add_argument(
+        "--sampler",
+        choices=("tpe", "gp"),
+        default=SAMPLER,
+        help=f"what asks the trials after the start-up draws: Optuna's TPE or its Gaussian "
+        f"process ({SAMPLER})",
     )
     g.add_argument("--tune-scenario", help="the tuning curriculum (default: the preset's)")
     g.add_argument(
@@ -183,6 +191,7 @@ def main(argv: list[str] | None = None) -> int:
         args.tuning_seed,
         args.race,
         args.race_seeds,
+        args.sampler,
     )
     if args.estimate:
         print(estimate_table(bench, estimate_bench(bench, execution_of(args))))

@@ -79,6 +79,7 @@ class TuneConfig:
     study_prefix: str = ""
     race: int = 0  # the best trials of a method scored again on more seeds (0: none)
     race_seeds: int = 2  # the seeds each raced trial gets beyond its own
+    sampler: str = "tpe"  # after the start-up draws: Optuna's TPE, or its Gaussian process
 
     def __post_init__(self):
         if self.trials < 1:
@@ -89,6 +90,8 @@ class TuneConfig:
             raise InputError(f"race must be at least 0 trials, got {self.race}")
         if self.race_seeds < 1:
             raise InputError(f"race seeds must be at least 1, got {self.race_seeds}")
+        if self.sampler not in SAMPLERS:
+            raise InputError(f"sampler {self.sampler!r}: expected one of {', '.join(SAMPLERS)}")
 
 
 JOURNAL = "journal:"  # --storage journal:FILE: Optuna's journal, for writers on many machines
@@ -189,13 +192,19 @@ def startup_trials(trials: int) -> int:
     return max(1, trials // 2)
 
 
-def _sampler(seed: int, method: str, index: int, trials: int):
+SAMPLERS = ("tpe", "gp")  # Optuna's tree-structured Parzen estimator, its Gaussian process
+
+
+def _sampler(seed: int, method: str, index: int, trials: int, kind: str = "tpe"):
+    """The sampler that asks trial ``index`` of ``method``, seeded from the tuning's seed, the
+    method and the index (a resumed tuning asks the same settings)."""
     import optuna
 
     derived = np.random.SeedSequence([seed, zlib.crc32(method.encode()), index])
-    return optuna.samplers.TPESampler(
-        seed=int(derived.generate_state(1)[0]), n_startup_trials=startup_trials(trials)
-    )
+    seed, startup = int(derived.generate_state(1)[0]), startup_trials(trials)
+    if kind == "gp":  # models the objective's noise (deterministic_objective=False)
+        return optuna.samplers.GPSampler(seed=seed, n_startup_trials=startup)
+    return optuna.samplers.TPESampler(seed=seed, n_startup_trials=startup)
 
 
 def _round_size(finished: int, trials: int, prune: bool) -> int:
@@ -302,7 +311,7 @@ def run_tuning(
             if count == 0 and not study.get_trials(deepcopy=False, states=(TrialState.WAITING,)):
                 study.enqueue_trial(_defaults(method, space, base))  # the defaults come first
             for index in range(count, count + _round_size(count, tune.trials, tune.prune)):
-                study.sampler = _sampler(base.seed, method, index, tune.trials)
+                study.sampler = _sampler(base.seed, method, index, tune.trials, tune.sampler)
                 trial = study.ask({key: _distribution(s) for key, s in space.items()})
                 asked.append((method, trial))
                 planned.append(plan_trial(method, index, trial.params))

@@ -21,6 +21,7 @@ from sim.studies.presets import (
     RACE_SEEDS,
     REFERENCE_SEEDS,
     REPLAY_BUDGET,
+    SAMPLER,
     SEEDS,
     TRIALS,
 )
@@ -46,7 +47,8 @@ class BenchConfig:
     ``tuning_seed``: the tuning's root seed (its sampler, trials and data) where it is not the
     evaluation's, so two tunings of one benchmark can be compared on the same evaluation;
     ``race``: each method's best trials scored again on ``race_seeds`` more seeds, the best mean
-    chosen (``sim.experiment.tuning``)."""
+    chosen (``sim.experiment.tuning``); ``sampler``: what asks the trials after the start-up
+    draws (``tpe`` or ``gp``)."""
 
     base: ExperimentConfig
     name: str = "custom"
@@ -63,6 +65,7 @@ class BenchConfig:
     tuning_seed: int | None = None
     race: int = RACE
     race_seeds: int = RACE_SEEDS
+    sampler: str = SAMPLER
     given: dict[str, Any] = field(init=False, compare=False, repr=False)  # the user's --set
 
     def __post_init__(self):
@@ -137,6 +140,7 @@ class BenchConfig:
             study_prefix=self.key(),
             race=self.race,
             race_seeds=self.race_seeds,
+            sampler=self.sampler,
         )
 
     def key(self) -> str:
@@ -152,6 +156,8 @@ class BenchConfig:
             "trials": self.trials,
             "prune": self.prune,
         }
+        if self.sampler != "tpe":  # the TPE-tuned boards keep their keys
+            protocol["sampler"] = self.sampler
         text = json.dumps(protocol, sort_keys=True, default=str)
         return f"{self.name}-{hashlib.sha256(text.encode()).hexdigest()[:12]}:"
 
@@ -186,6 +192,7 @@ class BenchConfig:
             "data": self.data,
             **({} if self.tuning_seed is None else {"tuning_seed": self.tuning_seed}),
             **({"race": self.race, "race_seeds": self.race_seeds} if self.race else {}),
+            **({} if self.sampler == "tpe" else {"sampler": self.sampler}),
         }
 
 

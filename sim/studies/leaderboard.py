@@ -112,6 +112,7 @@ def leaderboard(
         "prune": bench.prune,
         "race": bench.race,
         "race_seeds": bench.race_seeds,
+        "sampler": bench.sampler,
         "replay_budget": bench.replay_budget,
         "seeds": base.seeds,
         "reference_seeds": bench.reference_seeds,
@@ -155,6 +156,11 @@ def _race_text(board: dict[str, Any]) -> str:
     return f"; the {race} best raced over {seeds} more seeds each, the best mean chosen"
 
 
+def _sampler_text(board: dict[str, Any]) -> str:
+    """``; asked by a Gaussian process`` where the trials after the start-up draws were."""
+    return "; then asked by a Gaussian process" if board.get("sampler") == "gp" else ""
+
+
 def _interval_text(cell: dict[str, Any]) -> str:
     bounds = cell["interval"]
     text = f"{cell['mean']:.3f}"
@@ -173,7 +179,8 @@ def _protocol_text(board: dict[str, Any]) -> str:
     replay = board.get("replay_budget")
     return (
         f"{sizes}: {board['epochs']} epochs a task at batch {board['batch_scenes']}, K = "
-        f"{board['k']}, {board['trials']} Optuna trials a method (its defaults first{pruned}) "
+        f"{board['k']}, {board['trials']} Optuna trials a method (its defaults first{pruned}"
+        f"{_sampler_text(board)}) "
         f"on `{board['tune_scenario']}`{_tuning_seed_text(board)} scored on validation data only"
         f"{_race_text(board)}, "
         f"then {board['seeds']} seeds a method, seed s drawing its own data for every method"

@@ -11,6 +11,7 @@ SEEDS = 8  # evaluation seeds of every ranked method
 TRIALS = 10  # tuning trials of every method
 RACE = 0  # the best trials a method's tuning scores again on more seeds (0: the best one trial)
 RACE_SEEDS = 2  # the seeds each raced trial gets beyond its own
+SAMPLER = "tpe"  # what asks the trials after the start-up draws: tpe or gp (Optuna's)
 REFERENCE_SEEDS = 3  # seeds of each reference
 REPLAY_BUDGET = 200  # scenes every replay method keeps in all
 

@@ -401,6 +401,29 @@ def test_a_tuning_seed_reseeds_the_tuning_alone_under_a_key_of_its_own():
     assert "tuning_seed" not in first.to_json() and second.to_json()["tuning_seed"] == 7
 
 
+def test_a_gp_sampler_asks_its_own_trials_under_a_key_of_its_own_and_resumes(tmp_path):
+    """``--sampler gp``: after the start-up draws Optuna's Gaussian process asks (other settings
+    than TPE from the same seeds), its studies have a key of their own (TPE's boards keep theirs),
+    the board says so, and a resumed tuning asks and chooses the same."""
+    import optuna
+
+    base = ExperimentConfig("crowd_noise_0.1,0.2", methods=("finetune",), quick=True, record=False)
+    tpe, gp = BenchConfig(base, trials=3), BenchConfig(base, trials=3, sampler="gp")
+    assert tpe.key() != gp.key() and "sampler" not in tpe.to_json()
+    execution = Execution(cache=tmp_path / "cache")
+    asked = {}
+    for name, bench in (("tpe", tpe), ("gp", gp)):
+        chosen = run_tuning(bench.tuning(), tmp_path / name, execution)
+        storage = f"sqlite:///{tmp_path / name / 'tuning.db'}"
+        study = optuna.load_study(study_name=f"{bench.key()}finetune", storage=storage)
+        asked[name] = [t.params["train.lr"] for t in study.trials]
+        assert run_tuning(bench.tuning(), tmp_path / name, execution) == chosen  # resumed
+    assert asked["tpe"][0] == asked["gp"][0] == base.train_config().lr  # the defaults first
+    assert asked["tpe"][1] != asked["gp"][1] and asked["tpe"][2] != asked["gp"][2]
+    with pytest.raises(InputError, match="sampler 'cma'"):
+        TuneConfig(base, sampler="cma")
+
+
 def test_a_race_chooses_the_best_mean_over_more_seeds_not_the_best_single_score(
     tmp_path, monkeypatch
 ):
