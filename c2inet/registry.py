@@ -1,4 +1,5 @@
-"""One registry kit for every extension point (methods, backbones, generators, studies).
+"""One registry kit for every extension point (methods, backbones, generators, studies,
+loggers, benchmark presets).
 
 A :class:`Registry` holds one kind's entries by name. :meth:`Registry.discover` imports every
 module of the kind's package (a new file registers itself) and loads the entry points of the
@@ -67,8 +68,8 @@ class Registry(Generic[T]):
 
     def discover(self) -> dict[str, T]:
         """Every entry: the package's modules, then the group's plugins."""
-        package = importlib.import_module(self.package)
-        for module in pkgutil.iter_modules(package.__path__):
+        package = importlib.import_module(self.package)  # or one module holding every entry
+        for module in pkgutil.iter_modules(getattr(package, "__path__", ())):
             if module.name not in self.skip:
                 importlib.import_module(f"{self.package}.{module.name}")
         for point in importlib.metadata.entry_points(group=self.group):

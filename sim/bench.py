@@ -14,7 +14,6 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from c2inet.errors import InputError, did_you_mean
 from sim.cli import add_experiment_options, execution_of, experiment_options, interrupted, parse
 from sim.cli import parser as command_parser
 from sim.studies.presets import (
@@ -22,6 +21,7 @@ from sim.studies.presets import (
     RACE,
     RACE_SEEDS,
     REFERENCE_SEEDS,
+    REGISTRY,
     REPLAY_BUDGET,
     SAMPLER,
     SEEDS,
@@ -33,7 +33,7 @@ from viz.cli import bounded_float, bounded_int, guarded
 def presets() -> str:
     return "\n".join(
         f"  {name:<9} {p.scenario}  (tuned on {p.tune_scenario}): {p.description}"
-        for name, p in PRESETS.items()
+        for name, p in REGISTRY.discover().items()
     )
 
 
@@ -163,10 +163,7 @@ def main(argv: list[str] | None = None) -> int:
         p.error("give a preset or --scenario (one of them)")
     preset = None
     if args.preset is not None:
-        if args.preset not in PRESETS:
-            hint = did_you_mean(args.preset, PRESETS)
-            raise InputError(f"preset {args.preset!r}: unknown (known: {', '.join(PRESETS)}){hint}")
-        preset = PRESETS[args.preset]
+        preset = REGISTRY.get(args.preset)
         args.scenario = preset.scenario
     out = args.out or Path("bench") / (args.preset or "custom")
     from sim.experiment import ExperimentConfig  # the engine loads once there is work

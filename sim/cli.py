@@ -46,7 +46,7 @@ def parser(
         nargs="+",
         metavar="WHAT",
         help="print what exists and stop: families, methods, backbones, generators, studies, "
-        "loggers, or knobs FAMILY",
+        "loggers, presets, or knobs FAMILY",
     )
     p.add_argument(
         "--seed", type=bounded_int(0, 2**63 - 1), default=0, help="root seed (default 0)"
@@ -178,6 +178,7 @@ def registries() -> dict[str, Any]:
     from c2inet.methods.base import REGISTRY as methods
     from sim.generators.base import REGISTRY as generators
     from sim.studies.base import REGISTRY as studies  # the studies import the engine: late
+    from sim.studies.presets import REGISTRY as presets
     from viz.loggers import REGISTRY as loggers
 
     return {
@@ -186,6 +187,7 @@ def registries() -> dict[str, Any]:
         "generators": generators,
         "studies": studies,
         "loggers": loggers,
+        "presets": presets,
     }
 
 

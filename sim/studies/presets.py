@@ -1,10 +1,14 @@
 """The fair benchmark's protocol sizes and presets: plain data, so ``python -m sim.bench --help``
-lists them without loading the learner (``sim/studies/benchmark.py`` runs them)."""
+lists them without loading the learner (``sim/studies/benchmark.py`` runs them). The presets sit
+in the registry kit: another package adds one through the ``c2inet.presets`` entry-point group
+(a :class:`Preset`), and ``--list presets`` shows them all."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from typing import Any
+
+from c2inet.registry import Registry
 
 BATCH = 16  # scenes a step: the protocol's (batch 64 at 20 epochs under-trained, docs/benchmark.md)
 SEEDS = 8  # evaluation seeds of every ranked method
@@ -24,32 +28,50 @@ class Preset:
     (``--set data.KEY=VALUE`` overrides, e.g. fewer training scenes where each holds many agents;
     the user's own ``--set data.*`` wins)."""
 
+    name: str
     scenario: str
     tune_scenario: str
     description: str
     data: dict[str, Any] = field(default_factory=dict)
 
+    @property
+    def title(self) -> str:
+        """Its line in ``--list presets``."""
+        return f"{self.scenario}: {self.description}"
 
-PRESETS = {
-    "radius": Preset(
+
+def _is_preset(entry: Any) -> str | None:
+    return None if isinstance(entry, Preset) else f"{entry!r} is not a sim.studies.presets.Preset"
+
+
+REGISTRY: Registry[Preset] = Registry("preset", __name__, "c2inet.presets", _is_preset)
+PRESETS = REGISTRY.entries  # name -> preset: the built-in ones, then plugins once discovered
+
+
+for preset in (
+    Preset(
+        "radius",
         "crowd_radius_0.1..0.6",
         "crowd_radius_0.15..0.55:0.2",
         "the paper's Table 2 on the ORCA-steered crowd_radius; tuned on radii between its own",
         {"splits.train": 200},
     ),
-    "density": Preset(
+    Preset(
+        "density",
         "crowd_density_0.05..0.30:0.05",
         "crowd_density_0.075..0.275:0.1",
         "crowd density, where the domain is visible in the past; tuned on densities between",
         {"splits.train": 60},
     ),
-    "noise": Preset(
+    Preset(
+        "noise",
         "crowd_noise_0.1..0.6",
         "crowd_noise_0.15..0.55:0.2",
         "behavioural noise of Pymunk crowds; tuned on noise levels between its own",
         {"splits.train": 60},
     ),
-    "eth-ucy": Preset(
+    Preset(
+        "eth-ucy",
         "eth_ucy_univ,eth,zara1,zara2,hotel",
         "eth_ucy_univ,eth,zara1,zara2,hotel",
         "the ETH-UCY stream, one scene a task; tuned on the last fifth of each scene's training "
@@ -58,9 +80,11 @@ PRESETS = {
         # up to 28 agents); every 5th frame was estimated at 145 min, every 10th at 74
         {"windows.stride": 20},
     ),
-    "traffic": Preset(
+    Preset(
+        "traffic",
         "highway_density_0.5..2.0:0.5",
         "highway_density_0.75..1.75:0.5",
         "highway-env traffic density; tuned on densities between its own",
     ),
-}
+):
+    REGISTRY.add(preset.name, preset)

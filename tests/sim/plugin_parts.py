@@ -1,11 +1,12 @@
 """Extension points from outside the package, as a user's own package would ship them through
-entry points (``tests/sim/test_registry.py``): a generator that breaks its contract, a study,
-and objects that are not what their group wants."""
+entry points (``tests/sim/test_registry.py``): a generator that breaks its contract, a study, a
+benchmark preset, and objects that are not what their group wants."""
 
 import numpy as np
 
 from sim.generators.crowd import CrowdGenerator
 from sim.studies.base import Study
+from sim.studies.presets import Preset
 from viz.loggers import Logger
 
 
@@ -27,6 +28,9 @@ class Echo(Study):
 
 ECHO = Echo()
 NOT_A_STUDY = object()
+PLAZA = Preset(
+    "plaza", "crowd_noise_0.1..0.3", "crowd_noise_0.15..0.35:0.1", "a preset from a plugin"
+)
 
 
 class EventCount(Logger):

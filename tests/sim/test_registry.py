@@ -14,6 +14,7 @@ from sim.cli import listing
 from sim.generators.base import REGISTRY as GENERATORS
 from sim.generators.checker import GeneratorCheckError, check_generator
 from sim.studies.base import REGISTRY as STUDIES
+from sim.studies.presets import REGISTRY as PRESETS
 from viz.loggers import REGISTRY as LOGGERS
 from viz.loggers.checker import LoggerCheckError, check_logger
 
@@ -23,6 +24,7 @@ KINDS = {
     "generator": GENERATORS,
     "study": STUDIES,
     "logger": LOGGERS,
+    "preset": PRESETS,
 }
 KIND_GROUPS = {registry.group for registry in KINDS.values()}
 
@@ -44,6 +46,7 @@ def entry_points(monkeypatch):
         GENERATORS.isolated(),
         STUDIES.isolated(),
         LOGGERS.isolated(),
+        PRESETS.isolated(),
     ):
         for registry in KINDS.values():
             registry.skipped.clear()
@@ -85,6 +88,31 @@ def test_a_plugin_study_is_discovered_and_a_wrong_object_is_one_warning(entry_po
     assert "study plugin 'nothing' skipped: <object object" in capsys.readouterr().err
     STUDIES.discover()
     assert "skipped" not in capsys.readouterr().err  # once a process
+
+
+def test_a_plugin_preset_is_listed_found_by_name_and_cannot_take_a_builtins(
+    entry_points, capsys, monkeypatch
+):
+    """A benchmark preset of another package: in ``--list presets`` and ``sim.bench --help``,
+    found by name; one named as a built-in is skipped with one warning."""
+    from dataclasses import replace
+
+    import plugin_parts
+
+    from sim.bench import presets
+
+    monkeypatch.setattr(plugin_parts, "RADIUS", replace(plugin_parts.PLAZA, name="radius"), False)
+    entry_points["c2inet.presets"] = [
+        EntryPoint("plaza", "plugin_parts:PLAZA", "c2inet.presets"),
+        EntryPoint("radius-too", "plugin_parts:RADIUS", "c2inet.presets"),
+    ]
+    assert PRESETS.get("plaza").tune_scenario == "crowd_noise_0.15..0.35:0.1"
+    assert "a preset from a plugin" in listing(["presets"], []) and "plaza" in presets()
+    assert PRESETS.get("radius").scenario == "crowd_radius_0.1..0.6"  # the built-in stays
+    assert (
+        "preset plugin 'radius-too' skipped: its name 'radius' is a built-in"
+        in capsys.readouterr().err
+    )
 
 
 def test_a_plugin_logger_is_discovered_listed_used_and_held_to_the_checker(entry_points, tmp_path):
