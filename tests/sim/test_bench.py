@@ -201,11 +201,11 @@ def test_a_replay_budget_gives_every_replay_method_the_same_scenes():
 
 def test_a_presets_data_sizes_reach_both_curricula_under_the_users_own():
     density = PRESETS["density"]
-    assert density.data == {"splits.train": 60}  # many agents a scene: fewer scenes fit the hour
+    assert density.data == {"splits.train": 40}  # many agents a scene: fewer scenes fit the hour
     base = ExperimentConfig(density.scenario, methods=("finetune",))
     bench = BenchConfig(base, "density", density.tune_scenario, data=density.data)
     for config in (bench.base, bench.tuning().base):
-        assert {spec.family.splits.train for spec in config.specs} == {60}
+        assert {spec.family.splits.train for spec in config.specs} == {40}
     given = replace(base, settings={"data": {"splits.train": 90}})
     bench = BenchConfig(given, "density", density.tune_scenario, data=density.data)
     assert {spec.family.splits.train for spec in bench.base.specs} == {90}
