@@ -61,7 +61,7 @@ for preset in (
         "crowd_density_0.05..0.30:0.05",
         "crowd_density_0.075..0.275:0.1",
         "crowd density, where the domain is visible in the past; tuned on densities between",
-        # scenes of up to 30 agents: 60 training scenes took 74 min (7,492 CPU s of jobs)
+        # crowds of 4 to 22 agents: 60 training scenes took 74 min (7,492 CPU s of jobs)
         {"splits.train": 40},
     ),
     Preset(
