@@ -4,7 +4,12 @@ point-prediction ADE under each tuning, their paired difference over the shared 
 95 % interval, and the seed spread (the standard deviation over seeds, the larger of the two).
 The issue's criterion: the difference smaller than the spread, for every method.
 
+Given more than two boards (tunings of one benchmark), it prints instead each method's paired
+difference from fine-tuning under every tuning, and whether its sign holds under all of them:
+a verdict that survives the tuning's draw.
+
     python scripts/tuning_stability.py bench/radius-protocol bench/radius-tuning-seed-1
+    python scripts/tuning_stability.py BOARD BOARD BOARD ...
 """
 
 from __future__ import annotations
@@ -53,8 +58,40 @@ def table(a: Path, b: Path) -> str:
     return "\n".join(lines)
 
 
+def verdicts(boards: list[Path], reference: str = "finetune") -> str:
+    """Each method minus ``reference`` (paired over each board's seeds) under every tuning, and
+    whether its side holds under all of them (with how many intervals are clear of 0)."""
+    finals_of = [finals(board) for board in boards]
+    methods = sorted(set.intersection(*(set(f) for f in finals_of)) - {reference})
+    names = [
+        board.name if board.name not in "AB" else f"{board.parent.name}/{board.name}"
+        for board in boards
+    ]
+    lines = [
+        f"Each method's final K = 1 ADE minus {reference}'s, paired over the seeds, under each "
+        f"of {len(boards)} tunings (metres; `*`: the 95 % interval clear of 0)",
+        "",
+        "| method | " + " | ".join(names) + " | under every tuning |",
+        "|---|" + "---|" * (len(boards) + 1),
+    ]
+    for method in methods:
+        cells, differences, clear = [], [], 0
+        for final in finals_of:
+            seeds = sorted(set(final[method].index) & set(final[reference].index))
+            result = paired(list(final[method][seeds]), list(final[reference][seeds]))
+            low, high = result.interval or (0.0, 0.0)
+            clear += low > 0 or high < 0
+            differences.append(result.difference)
+            cells.append(f"{result.difference:+.3f}{' *' if low > 0 or high < 0 else ''}")
+        side = {1.0: "behind", -1.0: "ahead"}.get(float(np.sign(differences).mean()), "")
+        held = f"{side} ({clear} of {len(boards)} clear of 0)" if side else "no: it changes side"
+        lines.append(f"| {method} | " + " | ".join(cells) + f" | {held} |")
+    return "\n".join(lines)
+
+
 if __name__ == "__main__":
-    if len(sys.argv) != 3:
+    if len(sys.argv) < 3:
         print(__doc__.strip().splitlines()[-1], file=sys.stderr)
         sys.exit(2)
-    print(table(Path(sys.argv[1]), Path(sys.argv[2])))
+    boards = [Path(arg) for arg in sys.argv[1:]]
+    print(table(*boards) if len(boards) == 2 else verdicts(boards))

@@ -10,8 +10,10 @@ every method is its defaults, so tuning never selects worse than the defaults on
 
 The trials of one round run together on the run's backend: one per method, except that a
 method's first round holds all its start-up trials (its defaults and the random draws before TPE
-starts, which no result can change), so a method of 6 trials takes 4 rounds, not 6. The studies
-live in SQLite beside the run (``--storage URL`` for a shared database); the sampler is re-seeded
+starts, which no result can change), so a method of 6 trials takes 4 rounds, not 6. After the
+start-up draws TPE asks, or with ``sampler="gp"`` Optuna's Gaussian process. The studies live
+in SQLite beside the run (``--storage URL`` for a shared database, ``journal:FILE`` for Optuna's
+journal); the sampler is re-seeded
 from the seed, the method and the trial's index before each ask, so a killed tuning resumes to
 the same choices: unfinished trials are failed and asked again, and their jobs resume from their
 own folders.
@@ -29,9 +31,9 @@ With ``race`` (the best few trials, off by default), the choice is not the best 
 after the trials, each method's ``race`` best complete trials are scored again on
 ``race_seeds`` more tuning seeds (each drawing its own data and initialisation), and the one with
 the best mean over all its seeds is chosen (``race.py``; its runs live beside the trials and
-resume like them; the studies are unchanged by it). Measured on radius, it did not make two
-tunings agree (``docs/benchmark.md``): their tuning curriculum, not one seed's noise, set them
-apart; hence off.
+resume like them; the studies are unchanged by it). Measured on radius, neither the race, nor a
+tuning curriculum as long as the evaluated one, nor the Gaussian process made two tunings agree
+within the seed spread for every method (``docs/benchmark.md``); hence all three are off.
 """
 
 from __future__ import annotations
