@@ -227,7 +227,7 @@ def test_the_builtin_sdd_family_gives_each_video_its_own_metres(tmp_path, monkey
 def test_a_dataset_family_without_its_data_says_what_to_download(tmp_path, monkeypatch, capsys):
     from sim.run import main
 
-    monkeypatch.delenv("C2I_DATA_ROOT", raising=False)
+    monkeypatch.setenv("C2I_DATA_ROOT", "")  # unset, and restored after (main sets it)
     with pytest.raises(InputError, match="reads the Stanford Drone .* from DATA_ROOT/sdd .give"):
         parse_scenario("sdd_px_bookstore")
     argv = ["--scenario", "trajnetpp_students", "--methods", "cv", "--quick", "--no-record"]
