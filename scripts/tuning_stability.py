@@ -64,7 +64,7 @@ def verdicts(boards: list[Path], reference: str = "finetune") -> str:
     finals_of = [finals(board) for board in boards]
     methods = sorted(set.intersection(*(set(f) for f in finals_of)) - {reference})
     names = [
-        board.name if board.name not in "AB" else f"{board.parent.name}/{board.name}"
+        board.name if board.name not in ("A", "B") else f"{board.parent.name}/{board.name}"
         for board in boards
     ]
     lines = [

@@ -77,10 +77,9 @@ def add_tuning_options(p) -> None:
     )
     g.add_argument(
         "--sampler",
-        choices=("tpe", "gp"),
         default=SAMPLER,
-        help=f"what asks the trials after the start-up draws: Optuna's TPE or its Gaussian "
-        f"process ({SAMPLER})",
+        help=f"what asks the trials after the start-up draws: tpe (Optuna's TPE) or gp (its "
+        f"Gaussian process) ({SAMPLER})",
     )
     g.add_argument("--tune-scenario", help="the tuning curriculum (default: the preset's)")
     g.add_argument(

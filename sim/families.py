@@ -88,10 +88,11 @@ class Family:
             merged[self.knob] = value
         generator = get_generator(self.generator)
         knobs = build(generator.Knobs, merged, f"{self.path.name} value {value}")
+        folder = self.files_dir()
         try:
-            return generator.resolve(knobs, self.files_dir())
+            return generator.resolve(knobs, folder)
         except InputError as error:
-            if not self.data_root or str(error).startswith("family "):
+            if not self.data_root:
                 raise
             raise InputError(f"family {self.name}: {error} (expected {self.download})") from None
 

@@ -160,9 +160,8 @@ def _check_journal(path: Path, where: str) -> None:
         with path.open("rb") as file:
             first = file.readline()
         record = json.loads(first) if first else {}
-        if first and not (first.endswith(b"\n") and isinstance(record, dict)):
-            raise ValueError("not a record")  # Optuna would skip it, then append to it
-        if first and "op_code" not in record:
+        ours = first.endswith(b"\n") and isinstance(record, dict) and "op_code" in record
+        if first and not ours:  # Optuna would skip such a line, then append to the file
             raise ValueError("not a record")
         storage_of(f"{JOURNAL}{path}").get_all_studies()
     except Exception as error:  # the file, or Optuna's replay of its records: whatever it raises
@@ -335,9 +334,10 @@ def open_studies(tune: TuneConfig, out: Path, methods: list[str]) -> dict[str, A
     import optuna
     from optuna.trial import TrialState
 
-    storage = storage_of(tune.storage or f"sqlite:///{(out / 'tuning.db').resolve()}")
+    url = tune.storage or f"sqlite:///{(out / 'tuning.db').resolve()}"
     if tune.storage is None:  # our own store, damaged since: one line, not the driver's error
-        check_storage(storage, f"the tuning store {out / 'tuning.db'} (delete it to tune again)")
+        check_storage(url, f"the tuning store {out / 'tuning.db'} (delete it to tune again)")
+    storage = storage_of(url)
     studies = {}
     for method in methods:
         study = optuna.create_study(

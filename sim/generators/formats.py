@@ -70,7 +70,8 @@ def video_scales(path: Path, files: list[str]) -> dict[str, float]:
     scales = {}
     for file in files:
         location, video = Path(file).parent.parent.name, Path(file).parent.name
-        entry = table.get(location, {}).get(video) if isinstance(table, dict) else None
+        videos = table.get(location) if isinstance(table, dict) else None
+        entry = videos.get(video) if isinstance(videos, dict) else None
         if isinstance(entry, dict):
             entry = entry.get("scale")
         if isinstance(entry, bool) or not isinstance(entry, int | float) or not 0 < entry < 1e3:

@@ -13,7 +13,7 @@ from c2inet.methods.base import get_method
 from c2inet.report import REFERENCE
 from sim.experiment.config import ExperimentConfig
 from sim.experiment.trials import TRIAL_TRAIN
-from sim.experiment.tuning import TuneConfig
+from sim.experiment.tuning import SAMPLERS, TuneConfig
 from sim.scenario import parse_scenario
 from sim.studies.presets import (
     BATCH,
@@ -75,6 +75,8 @@ class BenchConfig:
             raise InputError(
                 f"methods: the board tests every method against {REFERENCE}; include it"
             )
+        if self.sampler not in SAMPLERS:
+            raise InputError(f"--sampler {self.sampler!r}: expected one of {', '.join(SAMPLERS)}")
         if self.reference_seeds < 1:
             raise InputError(f"reference seeds must be at least 1, got {self.reference_seeds}")
         if self.compare:

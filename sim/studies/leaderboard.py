@@ -157,7 +157,7 @@ def _race_text(board: dict[str, Any]) -> str:
 
 
 def _sampler_text(board: dict[str, Any]) -> str:
-    """``; asked by a Gaussian process`` where the trials after the start-up draws were."""
+    """``; then asked by a Gaussian process`` where the trials after the start-up draws were."""
     return "; then asked by a Gaussian process" if board.get("sampler") == "gp" else ""
 
 

@@ -422,6 +422,12 @@ def test_a_gp_sampler_asks_its_own_trials_under_a_key_of_its_own_and_resumes(tmp
     assert asked["tpe"][1] != asked["gp"][1] and asked["tpe"][2] != asked["gp"][2]
     with pytest.raises(InputError, match="sampler 'cma'"):
         TuneConfig(base, sampler="cma")
+    with pytest.raises(InputError, match="--sampler 'cma': expected one of tpe, gp"):
+        BenchConfig(base, sampler="cma")  # before any folder is claimed
+    from sim.studies.leaderboard import _sampler_text
+
+    assert _sampler_text(gp.to_json()) == "; then asked by a Gaussian process"
+    assert _sampler_text(tpe.to_json()) == ""
 
 
 def test_a_race_chooses_the_best_mean_over_more_seeds_not_the_best_single_score(

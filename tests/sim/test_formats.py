@@ -219,6 +219,9 @@ def test_the_builtin_sdd_family_gives_each_video_its_own_metres(tmp_path, monkey
     (tmp_path / "sdd" / "estimated_scales.yaml").write_text("bookstore:\n" + "".join(videos[:6]))
     with pytest.raises(InputError, match="no scale in .* for bookstore video6"):
         parse_scenario("sdd_bookstore")
+    (tmp_path / "sdd" / "estimated_scales.yaml").write_text("bookstore: [video0, video1]\n")
+    with pytest.raises(InputError, match="no scale in .* for bookstore video0"):
+        parse_scenario("sdd_bookstore")  # a location that is a list, not a table
     (tmp_path / "sdd" / "estimated_scales.yaml").write_text("bookstore: [unclosed\n")
     with pytest.raises(InputError, match="cannot read the videos' scales"):
         parse_scenario("sdd_bookstore")
