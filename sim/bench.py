@@ -89,6 +89,13 @@ def add_tuning_options(p) -> None:
         "second tuning of one benchmark, evaluated on the same seeds, shows whether it selects",
     )
     g.add_argument(
+        "--tuned-from",
+        type=Path,
+        metavar="BOARD",
+        help="no tuning: every method's settings as another benchmark chose them (its folder or "
+        "tuning.json), e.g. to rank the same settings on another curriculum",
+    )
+    g.add_argument(
         "--storage",
         help="the trials' Optuna storage: a database URL, or journal:FILE (Optuna's journal, a "
         "file processes on several machines may share); default: SQLite in --out",
@@ -188,6 +195,7 @@ def main(argv: list[str] | None = None) -> int:
         args.race,
         args.race_seeds,
         args.sampler,
+        args.tuned_from,
     )
     if args.estimate:
         print(estimate_table(bench, estimate_bench(bench, execution_of(args))))

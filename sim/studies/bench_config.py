@@ -6,12 +6,16 @@ from __future__ import annotations
 import hashlib
 import json
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
-from c2inet.errors import InputError
+from c2inet.errors import InputError, one_line
+from c2inet.files import file_digest
 from c2inet.methods.base import get_method
 from c2inet.report import REFERENCE
 from sim.experiment.config import ExperimentConfig
+from sim.experiment.folders import MAX_CONFIG_BYTES
+from sim.experiment.sweep import layered
 from sim.experiment.trials import TRIAL_TRAIN
 from sim.experiment.tuning import SAMPLERS, TuneConfig
 from sim.scenario import parse_scenario
@@ -28,6 +32,57 @@ from sim.studies.presets import (
 
 # what the leaderboard never reads, so evaluation jobs skip it (as tuning trials do)
 LEAN = TRIAL_TRAIN
+
+
+def _read_json(path: Path, option: str) -> Any:
+    """A small JSON file of ours, or one line saying why it cannot be read."""
+    try:
+        if not path.is_file():  # a FIFO or a device would never end
+            raise OSError("not a regular file")
+        if path.stat().st_size > MAX_CONFIG_BYTES:
+            raise OSError(f"larger than {MAX_CONFIG_BYTES} bytes")
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as error:
+        why = "nested too deeply" if isinstance(error, RecursionError) else str(error)
+        raise InputError(f"{option} {path}: cannot read it: {one_line(why)}") from None
+
+
+def borrowed_tuning(
+    given: Path, base: ExperimentConfig, ranked: tuple[str, ...]
+) -> tuple[dict[str, dict[str, Any]], dict[str, Any]]:
+    """Another benchmark's chosen settings (``--tuned-from``: a board's folder, its
+    ``tuning/`` folder or its ``tuning.json``), each ranked method's checked as ``--set`` is, and
+    where they came from (the file, its SHA-256, the curriculum they were tuned on where the
+    board's ``leaderboard.json`` says it). The same settings on another curriculum separate what
+    the data changes from what a tuning's draw changes (the sim-to-real ranking transfer)."""
+    option = "--tuned-from"
+    candidates = [given, given / "tuning.json", given / "tuning" / "tuning.json"]
+    path = next((c for c in candidates if c.is_file()), None)
+    if path is None:
+        raise InputError(f"{option} {given}: no tuning.json there (a benchmark's folder or file)")
+    chosen = _read_json(path, option)
+    if not isinstance(chosen, dict):
+        raise InputError(f"{option} {path}: expected a table of methods")
+    for method in ranked:
+        entry = chosen.get(method)
+        settings = entry.get("settings") if isinstance(entry, dict) else None
+        if not isinstance(settings, dict) or not all(
+            isinstance(v, dict) for v in settings.values()
+        ):
+            raise InputError(f"{option} {path}: no chosen settings of {method!r}")
+        try:
+            base.only(method, layered(base, settings))  # checked as --set is
+        except InputError as error:
+            raise InputError(f"{option} {path}: {method}: {error}") from None
+    source = {"file": str(path), "sha256": file_digest(path)}
+    boards = [p / "leaderboard.json" for p in (path.parent, path.parent.parent)]
+    board = next((b for b in boards if b.is_file()), None)
+    if board is not None:
+        tuned_on = _read_json(board, option)
+        if isinstance(tuned_on, dict) and isinstance(tuned_on.get("tune_scenario"), str):
+            source["tune_scenario"] = tuned_on["tune_scenario"]
+    # no trial ran here: the board counts none, and says whose settings it used
+    return {m: {"settings": chosen[m]["settings"], "trials": []} for m in ranked}, source
 
 
 def references(methods: tuple[str, ...]) -> tuple[str, ...]:
@@ -48,7 +103,8 @@ class BenchConfig:
     evaluation's, so two tunings of one benchmark can be compared on the same evaluation;
     ``race``: each method's best trials scored again on ``race_seeds`` more seeds, the best mean
     chosen (``sim.experiment.tuning``); ``sampler``: what asks the trials after the start-up
-    draws (``tpe`` or ``gp``)."""
+    draws (``tpe`` or ``gp``); ``tuned_from``: no tuning here, every method's settings taken
+    from another benchmark (:func:`borrowed_tuning`)."""
 
     base: ExperimentConfig
     name: str = "custom"
@@ -66,7 +122,9 @@ class BenchConfig:
     race: int = RACE
     race_seeds: int = RACE_SEEDS
     sampler: str = SAMPLER
+    tuned_from: Path | None = None
     given: dict[str, Any] = field(init=False, compare=False, repr=False)  # the user's --set
+    borrowed: tuple | None = field(init=False, compare=False, repr=False)  # (chosen, source)
 
     def __post_init__(self):
         object.__setattr__(self, "compare", tuple(self.compare))
@@ -113,6 +171,10 @@ class BenchConfig:
         if "joint-scratch" in self.base.methods:  # its one meaningful row: trained once
             settings["joint-scratch"] = {"final_only": True, **settings.get("joint-scratch", {})}
         object.__setattr__(self, "base", replace(self.base, settings=settings))
+        borrowed = None
+        if self.tuned_from is not None:
+            borrowed = borrowed_tuning(Path(self.tuned_from), self.base, self.ranked)
+        object.__setattr__(self, "borrowed", borrowed)
 
     @property
     def references(self) -> tuple[str, ...]:
@@ -195,6 +257,7 @@ class BenchConfig:
             **({} if self.tuning_seed is None else {"tuning_seed": self.tuning_seed}),
             **({"race": self.race, "race_seeds": self.race_seeds} if self.race else {}),
             **({} if self.sampler == "tpe" else {"sampler": self.sampler}),
+            **({"tuned_from": self.borrowed[1]["sha256"]} if self.borrowed else {}),
         }
 
 

@@ -47,18 +47,22 @@ def estimate_bench(bench: BenchConfig, execution: Execution) -> dict[str, Any]:
     tuning = bench.tuning().base
     tuning = replace(tuning, settings=layered(tuning, {"train": TRIAL_TRAIN}), record=False)
     evaluation = replace(bench.base, settings=layered(bench.base, {"train": LEAN}), record=False)
-    trial = job_seconds(tuning, validation_inputs(prepare(tuning, execution)).tasks)
+    trial = (  # another benchmark's settings (--tuned-from): no trial runs
+        {}
+        if bench.borrowed
+        else job_seconds(tuning, validation_inputs(prepare(tuning, execution)).tasks)
+    )
     job = job_seconds(evaluation, prepare(evaluation, execution).inputs.tasks)
     others = range(1, bench.base.seeds)  # seed 0's data made above; the pair's extra not known
-    races = range(1, bench.race_seeds + 1) if bench.race else range(0)
+    races = range(1, bench.race_seeds + 1) if bench.race and not bench.borrowed else range(0)
     generation = generation_seconds(  # each curriculum timed on its own: unlike sizes
         [replace(evaluation, seed=evaluation.seed + s) for s in others], execution
     ) + generation_seconds(
         [replace(tuning, seed=race_seed(tuning.seed, k)) for k in races], execution
     )
     runs = bench.trials + min(bench.race, bench.trials) * bench.race_seeds  # the race's too
-    trials = {m: runs if search_space(m) else 0 for m in bench.ranked}
-    tuning_cpu = sum(trials[m] * trial[m] for m in bench.ranked)
+    trials = {m: runs if search_space(m) and not bench.borrowed else 0 for m in bench.ranked}
+    tuning_cpu = sum(trials[m] * trial.get(m, 0.0) for m in bench.ranked)
     seeds = {m: seed_count(bench, m) for m in bench.base.methods}
     evaluation_cpu = sum(seeds[m] * job[m] for m in bench.base.methods)
     jobs = [job[m] for m in bench.base.methods for _ in range(seeds[m])]

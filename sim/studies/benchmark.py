@@ -198,7 +198,10 @@ def run_bench(
         estimate = {k: round(cost[k], 1) for k in ("cpu_seconds", "wall_seconds")}
         print(estimate_line(cost, execution.jobs), file=sys.stderr)
     with kept_workers():  # the tuning rounds and the evaluation start the workers once
-        chosen = run_tuning(bench.tuning(), out / "tuning", execution)
+        if bench.borrowed:  # another benchmark's choices: nothing to tune here
+            chosen = bench.borrowed[0]
+        else:
+            chosen = run_tuning(bench.tuning(), out / "tuning", execution)
         (out / "evaluation").mkdir(exist_ok=True)
         if not (out / "evaluation" / MARKER).is_file():  # a folder of ours, for --overwrite
             mark_run(out / "evaluation")
@@ -215,6 +218,8 @@ def run_bench(
         "settings": bench.given,
         "machine": machine(),
         "jobs": execution.jobs,
+        "backend": execution.backend,
+        **({"ray_address": execution.ray_address} if execution.ray_address else {}),
         **calls,
         "cpu_seconds": round(measured_cpu(out, evaluation), 1),
         "command": " ".join(argv or []),

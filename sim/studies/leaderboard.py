@@ -99,7 +99,12 @@ def leaderboard(
     return {
         "preset": bench.name,
         "scenario": base.scenario,
-        "tune_scenario": bench.tuning().base.scenario,
+        "tune_scenario": (
+            bench.borrowed[1].get("tune_scenario", "unknown")
+            if bench.borrowed
+            else bench.tuning().base.scenario
+        ),
+        **({"tuned_from": bench.borrowed[1]} if bench.borrowed else {}),
         "study_prefix": bench.key(),
         "sizes": run["sizes"],
         "epochs": base.epochs,
@@ -177,12 +182,20 @@ def _protocol_text(board: dict[str, Any]) -> str:
     given = _settings_text(board["run"]["settings"]) or "none"
     pruned = ", those worse than the median so far stopped early" if board.get("prune") else ""
     replay = board.get("replay_budget")
-    return (
-        f"{sizes}: {board['epochs']} epochs a task at batch {board['batch_scenes']}, K = "
-        f"{board['k']}, {board['trials']} Optuna trials a method (its defaults first{pruned}"
+    tuning = (
+        f"{board['trials']} Optuna trials a method (its defaults first{pruned}"
         f"{_sampler_text(board)}) "
         f"on `{board['tune_scenario']}`{_tuning_seed_text(board)} scored on validation data only"
-        f"{_race_text(board)}, "
+        f"{_race_text(board)}"
+    )
+    if board.get("tuned_from"):
+        tuning = (
+            f"**no tuning here**: every method's settings as another benchmark chose them "
+            f"(`{board['tuned_from']['file']}`, tuned on `{board['tune_scenario']}`)"
+        )
+    return (
+        f"{sizes}: {board['epochs']} epochs a task at batch {board['batch_scenes']}, K = "
+        f"{board['k']}, {tuning}, "
         f"then {board['seeds']} seeds a method, seed s drawing its own data for every method"
         f"{_data_text(board.get('data', {}))}. `--set`: {given}. "
         f"Ranked by final average ADE of the point prediction (K = 1). Intervals are 95 %; p is "
@@ -271,10 +284,18 @@ def _settings_and_cost(board: dict[str, Any]) -> list[str]:
         "",
         f"Ran: `{run['command']}` (the last of {run['calls']} calls) at commit "
         f"{', '.join(f'`{c}`' for c in run['commits'])} on {run['machine']}, "
-        f"{run['jobs']} jobs at a time: {cost}. Trials are kept in the study prefix "
-        f"`{board['study_prefix']}`.",
+        f"{_parallel_text(run)}: {cost}."
+        + ("" if board.get("tuned_from") else f" Trials are kept in `{board['study_prefix']}`."),
         "",
     ]
+
+
+def _parallel_text(run: dict[str, Any]) -> str:
+    """How the jobs shared the machine: ``N jobs at a time``, or on which Ray cluster."""
+    if run.get("backend") == "ray":
+        address = run.get("ray_address")
+        return f"on the Ray cluster at {address}" if address else f"on Ray with {run['jobs']} CPUs"
+    return f"{run['jobs']} job{'s' if run['jobs'] != 1 else ''} at a time"
 
 
 def leaderboard_markdown(board: dict[str, Any]) -> str:

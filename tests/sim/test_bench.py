@@ -628,3 +628,83 @@ def test_the_tuned_table_ranks_methods_by_their_mean_rank_and_marks_holm():
         in table
     )
     assert "- `b`: joint 0.250" in table
+
+
+def test_settings_tuned_by_another_benchmark_reach_every_job_and_no_trial_runs(tmp_path, capsys):
+    """``--tuned-from``: every method's chosen settings come from another board's tuning.json
+    (its folder found), no trial runs, the board says whose settings it used, and a resume with
+    another file is refused; a file without a method's settings, or with a setting no option
+    takes, is one line before anything is written."""
+    source = tmp_path / "source"
+    (source / "tuning").mkdir(parents=True)
+    chosen = {
+        "finetune": {"settings": {"train": {"lr": 0.0123}}, "trials": [{"pruned": False}] * 3},
+        "ewc": {"settings": {"train": {"lr": 0.0045}, "ewc": {"strength": 7.5}}, "trials": []},
+        "cv": {"settings": {}, "trials": []},
+    }
+    (source / "tuning" / "tuning.json").write_text(json.dumps(chosen))
+    (source / "leaderboard.json").write_text(json.dumps({"tune_scenario": "crowd_noise_0.3"}))
+    out = tmp_path / "bench"
+    argv = [
+        *("--scenario", "crowd_noise_0.1,0.2", "--methods", "finetune,ewc,cv", "--seeds", "2"),
+        *("--quick", "--no-record", "--cache", str(tmp_path / "cache"), "--out", str(out)),
+    ]
+    assert main([*argv, "--tuned-from", str(source)]) == 0
+    config = json.loads((out / "evaluation" / "ewc" / "seed_1" / "config.json").read_text())
+    assert config["experiment"]["settings"]["train"]["lr"] == 0.0045
+    assert config["experiment"]["settings"]["ewc"]["strength"] == 7.5
+    finetune = json.loads((out / "evaluation" / "finetune" / "seed_0" / "config.json").read_text())
+    assert finetune["experiment"]["settings"]["train"]["lr"] == 0.0123
+    assert not (out / "tuning").exists()  # no trial ran
+    board = json.loads((out / "leaderboard.json").read_text())
+    assert board["tuned_from"]["file"].endswith("tuning.json")
+    assert board["tune_scenario"] == "crowd_noise_0.3"
+    assert {e["method"]: e["trials"] for e in board["entries"]}["finetune"] == 0
+    assert "**no tuning here**" in (out / "leaderboard.md").read_text()
+    chosen["ewc"]["settings"]["ewc"]["strength"] = 1.0
+    (source / "tuning" / "tuning.json").write_text(json.dumps(chosen))
+    capsys.readouterr()
+    assert main([*argv, "--tuned-from", str(source), "--resume"]) == 2  # other settings
+    assert "error:" in capsys.readouterr().err
+    for broken, why in (
+        ({"finetune": chosen["finetune"], "cv": chosen["cv"]}, "no chosen settings of 'ewc'"),
+        ({**chosen, "ewc": {"settings": {"ewc": {"strenght": 1}}}}, "ewc:"),
+        ([1, 2], "expected a table of methods"),
+    ):
+        bad = tmp_path / "bad.json"
+        bad.write_text(json.dumps(broken))
+        assert main([*argv, "--tuned-from", str(bad), "--out", str(tmp_path / "no")]) == 2
+        err = capsys.readouterr().err
+        assert why in err and err.count("\n") == 1 and not (tmp_path / "no").exists()
+    assert main([*argv, "--tuned-from", str(tmp_path / "none"), "--out", str(tmp_path / "no")]) == 2
+    assert "no tuning.json there" in capsys.readouterr().err
+
+
+def test_the_ranking_transfer_is_one_for_one_ranking_and_falls_as_it_reverses():
+    """``scripts/ranking_transfer.py``: Kendall's tau of a board with itself is 1; with its
+    methods' errors reversed, -1; a ranking that holds only within noise has an interval that
+    holds less than the point; the committed density boards (40 and 60 scenes) agree partly."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    sys.path.insert(0, str(root / "scripts"))
+    spec = importlib.util.spec_from_file_location(
+        "ranking", root / "scripts" / "ranking_transfer.py"
+    )
+    ranking = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(ranking)
+    rng = np.random.default_rng(0)
+    a = np.linspace(0.1, 0.5, 6) + rng.normal(0, 0.01, (8, 6))  # 8 seeds, 6 methods well apart
+    same = ranking.transfer(a, a + rng.normal(0, 0.01, a.shape), resamples=200)
+    assert same["tau"] == pytest.approx(1.0) and same["interval"][1] == pytest.approx(1.0)
+    assert ranking.transfer(a, -a, resamples=200)["tau"] == pytest.approx(-1.0)
+    noisy = ranking.transfer(a, rng.normal(0.3, 0.2, a.shape), resamples=200)
+    assert (
+        noisy["interval"][0] < noisy["tau"] < 1
+        and noisy["interval"][1] - noisy["interval"][0] > 0.3
+    )
+    boards = root / "docs" / "leaderboards"
+    text = ranking.report(boards / "density", boards / "density-60")
+    assert "Kendall's tau +0.65" in text and "| coresets | 0.423 | 1 | 0.423 | 1 | +0 |" in text

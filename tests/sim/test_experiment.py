@@ -450,17 +450,34 @@ def test_folder_names_stay_short_and_distinct_for_long_scenarios():
     assert run_root("crowd_noise_0.1..0.6").name == "crowd_noise_0.1..0.6"  # short: unchanged
 
 
-def test_the_estimate_steps_through_the_growing_data_of_joint():
+def test_the_estimate_steps_through_the_windows_each_method_trains_on():
+    """An epoch's steps are those of the windows a method trains on: the task's for fine-tuning,
+    joint's growing union, coresets' task beside its buffer (counting the task alone made
+    density's estimate 23 % low), none where joint-scratch skips a task."""
     from c2inet.data import Windows
-    from c2inet.methods.base import get_method
-    from c2inet.trainer import Task
-    from sim.experiment.estimate import training_steps
+    from c2inet.methods.base import TaskContext, get_method
+    from c2inet.model_config import ModelConfig
+    from c2inet.trainer import TrainConfig, start_training
+    from sim.experiment.estimate import task_seconds
 
-    windows = Windows(np.zeros((4, 20, 2)), np.arange(5))  # 4 scenes of one agent
-    tasks = [Task(f"t{i}", windows, None, windows) for i in range(3)]
-    assert len(windows) == 4
-    assert training_steps(get_method("finetune"), tasks, 2) == [2, 2, 2]
-    assert training_steps(get_method("joint"), tasks, 2) == [2, 4, 6]
+    positions = np.random.default_rng(0).normal(size=(4, 20, 2)).astype(np.float32)
+    windows = Windows(positions, np.arange(5))  # 4 scenes of one agent
+    train = TrainConfig(batch_scenes=2)
+
+    def steps(name: str, **options) -> list[int]:
+        method = get_method(name)(ModelConfig(), options)
+        model, optimiser, rng = start_training(method, train)
+        counted = []
+        for i in range(3):
+            seen = [windows] * i if method.sees_old_tasks else []
+            ctx = TaskContext(i, f"t{i}", windows, model, optimiser, rng, seen, tasks=3)
+            counted.append(task_seconds(method, ctx, train, 1)[1])
+        return counted
+
+    assert steps("finetune") == [2, 2, 2]
+    assert steps("joint") == [2, 4, 6]
+    assert steps("coresets", per_task=4) == [2, 4, 6]  # the task's 4 scenes and the buffer's
+    assert steps("joint-scratch", final_only=True) == [0, 0, 6]
 
 
 def test_the_estimate_times_a_tasks_steps_with_its_past_and_every_hook():
@@ -499,7 +516,7 @@ def test_the_estimate_times_a_tasks_steps_with_its_past_and_every_hook():
         task_seconds(method, TaskContext(i, "t", windows, model, optimiser, rng), train, 10)
         for i in (0, 1)
     ]
-    (step_0, hooks_0), (step_1, hooks_1) = timed
+    (step_0, _, hooks_0), (step_1, _, hooks_1) = timed
     assert step_1 > step_0 + 0.03
     for hooks in (hooks_0, hooks_1):
         assert 10 * 0.03 + 0.04 <= hooks < 2 * (10 * 0.03 + 0.04)  # each once, not per step

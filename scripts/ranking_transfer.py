@@ -1,0 +1,92 @@
+"""Does a ranking on one benchmark carry over to another? Two boards of the same methods (say the
+five fitted crowd families against the real ETH-UCY stream, ``sim.bench ... --tuned-from`` so
+both use the same settings): each method's rank by final point-prediction ADE on each, Kendall's
+tau-b between the two rankings, and its 95 % bootstrap interval over seeds (each board's seeds
+resampled on their own, the same draw for every method of a board, so a board's pairing holds).
+
+    python scripts/ranking_transfer.py SIM_BOARD REAL_BOARD [--out FILE.md]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+from scipy.stats import kendalltau
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from tuning_stability import finals  # noqa: E402
+
+RESAMPLES = 2000
+
+
+def seed_table(board: Path, methods: list[str]) -> np.ndarray:
+    """(seeds, methods): each method's final ADE on the seeds every method of ``methods`` has."""
+    final = finals(board)
+    seeds = sorted(set.intersection(*(set(final[m].index) for m in methods)))
+    return np.array([[final[m][s] for m in methods] for s in seeds])
+
+
+def ranks(means: np.ndarray) -> np.ndarray:
+    """1 for the lowest error."""
+    return np.argsort(np.argsort(means)) + 1
+
+
+def transfer(a: np.ndarray, b: np.ndarray, resamples: int = RESAMPLES, seed: int = 0) -> dict:
+    """Kendall's tau-b between the rankings by the seed means of ``a`` and ``b`` (seeds,
+    methods), with its percentile interval over ``resamples`` bootstrap draws of each board's
+    seeds."""
+    tau = kendalltau(a.mean(0), b.mean(0)).statistic
+    rng = np.random.default_rng(seed)
+    draws = [
+        kendalltau(
+            a[rng.integers(0, len(a), len(a))].mean(0), b[rng.integers(0, len(b), len(b))].mean(0)
+        ).statistic
+        for _ in range(resamples)
+    ]
+    low, high = np.percentile(draws, [2.5, 97.5])
+    return {"tau": float(tau), "interval": (float(low), float(high))}
+
+
+def report(sim: Path, real: Path, references: tuple[str, ...] = ("joint", "joint-scratch")) -> str:
+    methods = sorted((set(finals(sim)) & set(finals(real))) - set(references))
+    a, b = seed_table(sim, methods), seed_table(real, methods)
+    result = transfer(a, b)
+    rank_a, rank_b = ranks(a.mean(0)), ranks(b.mean(0))
+    low, high = result["interval"]
+    lines = [
+        f"Ranking on `{sim}` (A, {len(a)} seeds) against `{real}` (B, {len(b)} seeds), "
+        f"{len(methods)} methods by final point-prediction ADE (metres): **Kendall's tau "
+        f"{result['tau']:+.2f} [{low:+.2f}, {high:+.2f}]** (95 % bootstrap over each board's "
+        f"seeds, {RESAMPLES} draws).",
+        "",
+        "| method | A: ADE | A: rank | B: ADE | B: rank | moves (B minus A) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for i in np.argsort(rank_b):
+        move = int(rank_b[i] - rank_a[i])
+        lines.append(
+            f"| {methods[i]} | {a[:, i].mean():.3f} | {rank_a[i]} | {b[:, i].mean():.3f} | "
+            f"{rank_b[i]} | {move:+d} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("sim", type=Path)
+    p.add_argument("real", type=Path)
+    p.add_argument("--out", type=Path, help="also write the table here")
+    args = p.parse_args()
+    text = report(args.sim, args.real)
+    print(text, end="")
+    if args.out:
+        args.out.write_text(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
