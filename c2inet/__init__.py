@@ -1,6 +1,6 @@
 """The learner, a library on its own: input type, backbones, C2INet, continual methods, metrics.
 
-The names a user needs are here::
+The names a user needs are here:
 
     from c2inet import ContinualTrainer, ModelConfig, Task, TrainConfig, Windows, get_method
 """

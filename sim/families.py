@@ -1,6 +1,6 @@
 """Domain families: one TOML file each, naming a generator, the knob its values set, defaults.
 
-A family file looks like::
+A family file looks like:
 
     description = "Pymunk crowds whose behavioural noise grows"
     generator = "crowd"

@@ -3,7 +3,7 @@
 It sits above the world (``sim``'s scenario language, families, generators and data model) and
 below the commands and studies, which only call it.
 
-From a notebook::
+From a notebook:
 
     from sim.experiment import ExperimentConfig, run_experiment
     metrics = run_experiment(ExperimentConfig("crowd_noise_0.1..0.3", quick=True))

@@ -28,8 +28,7 @@ from c2inet.evaluation import evaluate, evaluate_all
 from c2inet.methods.base import Method, TaskContext
 from c2inet.trainer import Task, TrainConfig, start_training, train_step
 
-STEPS = 9  # timed training steps per task, after one to warm up
-EPOCH_HOOKS = 2  # epoch hooks timed per task: C2INet fits Eq 8 every second epoch
+STEPS = 9  # timed training steps, after one to warm up, at a task's start and at its end
 
 
 def _seconds(work: Callable[[], object]) -> float:
@@ -39,15 +38,37 @@ def _seconds(work: Callable[[], object]) -> float:
     return time.process_time() - start
 
 
+def _step_seconds(method: Method, ctx: TaskContext, data, train: TrainConfig) -> float:
+    """The mean CPU seconds of :data:`STEPS` training steps, each with its batch's making, as a
+    job spends them, after a first step that warms up. The mean: a step's cost grows with its
+    scenes' agents (and attention with their square), so on crowds of unlike sizes (density's 3
+    to 19, univ's windows of up to 28) a few steps' median sits below what an epoch's steps cost
+    on average (the estimate was 46 % low on density, 22 % on ETH-UCY)."""
+    steps = itertools.islice(batches(data, train.batch_scenes, ctx.rng, ctx.device), STEPS + 1)
+    times = []
+    while True:
+        started = time.process_time()
+        batch = next(steps, None)
+        if batch is None:
+            break
+        train_step(method, ctx, batch, train)
+        times.append(time.process_time() - started)
+    return statistics.fmean(times[1:] or times)
+
+
 def task_seconds(
     method: Method, ctx: TaskContext, train: TrainConfig, epochs: int
 ) -> tuple[float, int, float]:
-    """Train on task ``ctx`` as a job does, briefly: its task hooks, :data:`STEPS` timed steps
-    and the first epoch hooks. Returns (seconds a step, steps an epoch, seconds of hooks for
-    ``epochs``). The steps are those of the windows the method trains on, as the trainer takes
-    them: a replay method's buffer (coresets train on it beside the task's scenes: counting the
-    task's alone made density's estimate 23 % low), joint's growing union, none for a task
-    joint-scratch skips."""
+    """Train on task ``ctx`` as a job does, briefly: its task hooks, steps timed before and after
+    every epoch hook has run once. Returns (seconds a step, steps an epoch, seconds of hooks).
+
+    The steps are those of the windows the method trains on, as the trainer takes them: a replay
+    method's buffer (coresets train on it beside the task's scenes: counting the task's alone
+    made density's estimate 23 % low), joint's growing union, none for a task joint-scratch
+    skips. Every epoch hook runs, so what they build up is there for the later steps (C2INet's
+    queue gains a component every second epoch, and its steps grow dearer through a task: timing
+    the first steps and two hooks made its jobs 35 to 44 % dearer than estimated); a step costs
+    the mean of the first steps and the last."""
     started = time.process_time()
     ctx.model.train()
     method.before_task(ctx)
@@ -56,30 +77,11 @@ def task_seconds(
     steps_per_epoch = math.ceil(len(data) / train.batch_scenes)
     if not len(data):  # a task it does not train on (joint-scratch's final_only): time a step
         data = ctx.train
-    steps = itertools.islice(batches(data, train.batch_scenes, ctx.rng, ctx.device), STEPS + 1)
-    times = []
-    while True:  # a step is its batch's making and its training, as a job spends them
-        started = time.process_time()
-        batch = next(steps, None)
-        if batch is None:
-            break
-        train_step(method, ctx, batch, train)
-        times.append(time.process_time() - started)
-    # the mean, after a first step that warms up: a step's cost grows with its scenes' agents
-    # (and attention with their square), so on crowds of unlike sizes (density's 3 to 19, univ's
-    # windows of up to 28) a few steps' median sits below what an epoch's steps cost on average
-    # (the estimate was 46 % low on density, 22 % on ETH-UCY); CPU time keeps most of a machine's
-    # other work out of it
-    per_step = statistics.fmean(times[1:] or times)
-    timed = range(min(epochs, EPOCH_HOOKS))
-    if timed:  # the mean epoch hook, for every epoch
-        hooks += (
-            sum(_seconds(lambda e=e: method.after_epoch(ctx, e)) for e in timed)
-            * epochs
-            / len(timed)
-        )
+    first = _step_seconds(method, ctx, data, train)
+    hooks += sum(_seconds(lambda e=e: method.after_epoch(ctx, e)) for e in range(epochs))
+    last = _step_seconds(method, ctx, data, train) if epochs > 1 else first
     hooks += _seconds(lambda: method.after_task(ctx))
-    return per_step, steps_per_epoch, hooks
+    return (first + last) / 2, steps_per_epoch, hooks
 
 
 def method_seconds(config, name: str, tasks: list[Task], warm_up: bool = False) -> float:

@@ -1,7 +1,7 @@
 """The experiment as a function: :func:`run_experiment` generates the curriculum, runs every
 job on the chosen backend and writes every output (``sim.experiment.outputs``).
 
-From a notebook::
+From a notebook:
 
     from sim.experiment import ExperimentConfig, run_experiment
     metrics = run_experiment(ExperimentConfig("crowd_noise_0.1..0.3", quick=True))

@@ -66,34 +66,9 @@ def decide(pair: tuple[str, str], summaries: dict[str, dict[str, Any]], width: f
     }
 
 
-def leaderboard(
-    bench,
-    summaries: dict[str, dict[str, Any]],
-    chosen: dict[str, dict[str, Any]],
-    decisive: dict[str, dict[str, Any]] | None,
-    run: dict[str, Any],
-) -> dict[str, Any]:
-    """The ranked methods by final point-prediction ADE over the common seeds, each with its
-    interval, the Holm-adjusted paired test against fine-tuning, forgetting, memory, CPU cost
-    and the settings tuning chose; the references apart; the decisive pair; what ran."""
-    comparison = compare({m: summaries[m] for m in bench.ranked})
-    adjust(comparison)
-    ranked = sorted(comparison, key=lambda name: comparison[name]["final_ade_k1"]["mean"])
-    entries = []
-    for rank, name in enumerate(ranked, 1):
-        method = name.split(",")[0]
-        entries.append(
-            {
-                "rank": rank,
-                "method": name,
-                **comparison[name],
-                "cpu_seconds": round(summaries[method]["cpu_seconds"], 1),
-                "settings": chosen[method]["settings"],
-                "trials": len(chosen[method]["trials"]),
-                "pruned": sum(t["pruned"] for t in chosen[method]["trials"]),
-                **({"race": chosen[method]["race"]} if "race" in chosen[method] else {}),
-            }
-        )
+def protocol(bench, run: dict[str, Any]) -> dict[str, Any]:
+    """What a board was run with: curricula, sizes, tuning (or whose settings it took) and
+    statistics."""
     base = bench.base
     train = base.train_config()
     return {
@@ -125,6 +100,39 @@ def leaderboard(
         "reference": REFERENCE,
         "alpha": ALPHA,
         "correction": "holm",
+    }
+
+
+def leaderboard(
+    bench,
+    summaries: dict[str, dict[str, Any]],
+    chosen: dict[str, dict[str, Any]],
+    decisive: dict[str, dict[str, Any]] | None,
+    run: dict[str, Any],
+) -> dict[str, Any]:
+    """The ranked methods by final point-prediction ADE over the common seeds, each with its
+    interval, the Holm-adjusted paired test against fine-tuning, forgetting, memory, CPU cost
+    and the settings tuning chose; the references apart; the decisive pair; what ran."""
+    comparison = compare({m: summaries[m] for m in bench.ranked})
+    adjust(comparison)
+    ranked = sorted(comparison, key=lambda name: comparison[name]["final_ade_k1"]["mean"])
+    entries = []
+    for rank, name in enumerate(ranked, 1):
+        method = name.split(",")[0]
+        entries.append(
+            {
+                "rank": rank,
+                "method": name,
+                **comparison[name],
+                "cpu_seconds": round(summaries[method]["cpu_seconds"], 1),
+                "settings": chosen[method]["settings"],
+                "trials": len(chosen[method]["trials"]),
+                "pruned": sum(t["pruned"] for t in chosen[method]["trials"]),
+                **({"race": chosen[method]["race"]} if "race" in chosen[method] else {}),
+            }
+        )
+    return {
+        **protocol(bench, run),
         "entries": entries,
         "references": reference_rows(summaries, bench.references),
         "decisive": decisive and decide(bench.compare, decisive, bench.width),
