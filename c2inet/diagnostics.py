@@ -158,6 +158,24 @@ def diagnose(
     return out
 
 
+def _queue_shares(queue, responsibility, owners, labels, tasks: int) -> dict[str, Any]:
+    """The queue's size, weights and owners, and ``share[j][i]``: the responsibility of task i's
+    components on task j's scenes."""
+    share = [
+        [
+            round(float(responsibility[labels == j][:, owners == i].sum(1).mean()), 4)
+            for i in range(tasks)
+        ]
+        for j in range(tasks)
+    ]
+    return {
+        "size": len(queue.mixture),
+        "weights": [round(float(w), 5) for w in queue.mixture.weights],
+        "owners": list(queue.owners),
+        "share": share,
+    }
+
+
 def _confounder(model, batches, labels, values, seed) -> dict[str, Any]:
     """The C2INet part of :func:`diagnose`."""
     queue, cfg = model.queue, model.config
@@ -190,23 +208,10 @@ def _confounder(model, batches, labels, values, seed) -> dict[str, Any]:
     out["mi_xc"] = _rounded(mutual_information(c_mean[subset], c_logvar[subset]))
     out["mi_bound"] = _rounded(math.log(len(subset)))
     out["probe_c"] = _rounded(probe_accuracy(c_scene.cpu().numpy(), labels, seed))
-    mixture = queue.mixture
-    responsibility = responsibilities(mixture, c_mean, c_logvar)  # p(k | X), (n, K)
+    responsibility = responsibilities(queue.mixture, c_mean, c_logvar)  # p(k | X), (n, K)
     owners = torch.tensor(queue.owners, device=c_mean.device)
     tasks = len(batches)
-    share = [
-        [
-            round(float(responsibility[c_labels == j][:, owners == i].sum(1).mean()), 4)
-            for i in range(tasks)
-        ]
-        for j in range(tasks)
-    ]
-    out["queue"] = {
-        "size": len(mixture),
-        "weights": [round(float(w), 5) for w in mixture.weights],
-        "owners": list(queue.owners),
-        "share": share,  # share[j][i]: responsibility of task i's components on task j's scenes
-    }
+    out["queue"] = _queue_shares(queue, responsibility, owners, c_labels, tasks)
     # each agent's most responsible component's owner task, against its true domain
     owner_task = owners[responsibility.argmax(-1)].cpu().numpy()
     domain = np.repeat(labels, counts)

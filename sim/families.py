@@ -161,18 +161,23 @@ def window_stride(table: dict[str, Any], where: str) -> int:
     return stride
 
 
-def load_family(path: Path) -> Family:
-    """Read and check one family TOML file; every unknown key is an error."""
+def _read_toml(path: Path) -> dict[str, Any]:
+    """A family file's table, or one line saying why it cannot be read."""
     if not path.is_file():  # a FIFO or a device named *.toml would block or never end
         raise InputError(f"{path}: a family file must be a regular file")
     if path.stat().st_size > MAX_FAMILY_BYTES:
         raise InputError(f"{path}: larger than {MAX_FAMILY_BYTES // 1000} kB; no family is")
     try:
-        raw = tomllib.loads(path.read_text(encoding="utf-8"))
+        return tomllib.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as error:
         raise InputError(f"{path}: cannot read family file: {error}") from None
     except RecursionError:
         raise InputError(f"{path}: cannot read family file: nested too deeply") from None
+
+
+def load_family(path: Path) -> Family:
+    """Read and check one family TOML file; every unknown key is an error."""
+    raw = _read_toml(path)
     unknown = sorted(set(raw) - _FAMILY_KEYS)
     if unknown:
         raise InputError(

@@ -202,6 +202,49 @@ def spaced_subset(points: np.ndarray, gap: float, limit: int) -> np.ndarray:
     return chosen[:count]
 
 
+def _controller(knobs: CrowdKnobs) -> Controller:
+    """The steering of one scene's agents (ORCA or social forces) with the knobs' noise."""
+    decay = math.exp(-knobs.control_dt / knobs.noise_tau)
+    return Controller(
+        scene_size=knobs.num_agents,
+        contact=2 * knobs.radius,
+        dt=knobs.control_dt,
+        max_speed=2 * knobs.speed,
+        noise_decay=decay,
+        noise_kick=knobs.noise * math.sqrt(1 - decay**2),
+        kind=knobs.controller,
+        horizon=knobs.horizon,
+        lane=knobs.width / 2 - knobs.radius if knobs.layout == "corridor" else math.inf,
+    )
+
+
+def _space(
+    knobs: CrowdKnobs, start: np.ndarray, initial: np.ndarray, scene_x: np.ndarray
+) -> pymunk.Space:
+    """A Pymunk space of every scene's discs at ``start`` moving at ``initial``, and each
+    corridor scene's walls (scene k at x = ``scene_x[k]``)."""
+    # ORCA lets agents pass at exactly contact distance; discs a hair smaller keep Chipmunk from
+    # treating every such pass as a collision, so it resolves only real overlaps.
+    skin = ORCA_SKIN if knobs.controller == "orca" else 0.0
+    space = pymunk.Space()
+    space.collision_slop = min(0.01, 0.05 * knobs.radius)  # the default 0.1 is for pixels
+    space.use_spatial_hash(4 * knobs.radius, 4 * len(start))  # 3x faster than the default tree
+    for p, v in zip(start, initial, strict=True):
+        body = pymunk.Body(1.0, float("inf"))
+        body.position = tuple(p)
+        body.velocity = tuple(v)
+        shape = pymunk.Circle(body, knobs.radius * (1 - skin))
+        shape.friction = 0.0
+        space.add(body, shape)
+    if knobs.layout == "corridor":
+        for x0 in scene_x:
+            for side in (-1, 1):
+                y = side * (knobs.width / 2 + 0.05)
+                ends = (x0 - knobs.walk_extent, y), (x0 + knobs.walk_extent, y)
+                space.add(pymunk.Segment(space.static_body, *ends, 0.05))
+    return space
+
+
 def simulate(knobs: CrowdKnobs, seeds: list[np.random.SeedSequence]) -> list[np.ndarray]:
     """Simulate one scene per seed together; returns positions (frames, agents, 2) per scene."""
     n, scenes = knobs.num_agents, len(seeds)
@@ -217,44 +260,13 @@ def simulate(knobs: CrowdKnobs, seeds: list[np.random.SeedSequence]) -> list[np.
         [np.clip(rng.normal(knobs.speed, knobs.speed_spread, n), 0.1, None) for rng in rngs]
     )
     noise = np.concatenate([knobs.noise * rng.standard_normal((n, 2)) for rng in rngs])
-    decay = math.exp(-knobs.control_dt / knobs.noise_tau)
-    controller = Controller(
-        scene_size=n,
-        contact=2 * knobs.radius,
-        dt=knobs.control_dt,
-        max_speed=2 * knobs.speed,
-        noise_decay=decay,
-        noise_kick=knobs.noise * math.sqrt(1 - decay**2),
-        kind=knobs.controller,
-        horizon=knobs.horizon,
-        lane=knobs.width / 2 - knobs.radius if knobs.layout == "corridor" else math.inf,
-    )
+    controller = _controller(knobs)
     if knobs.start == "moving":  # at the preferred speed, straight for the goal
         heading = goal - start
         initial = heading * (speed / np.maximum(np.linalg.norm(heading, axis=1), 1e-9))[:, None]
     else:
         initial = np.zeros_like(start)
-
-    # ORCA lets agents pass at exactly contact distance; discs a hair smaller keep Chipmunk from
-    # treating every such pass as a collision, so it resolves only real overlaps.
-    skin = ORCA_SKIN if knobs.controller == "orca" else 0.0
-    space = pymunk.Space()
-    space.collision_slop = min(0.01, 0.05 * knobs.radius)  # the default 0.1 is for pixels
-    space.use_spatial_hash(4 * knobs.radius, 4 * len(start))  # 3x faster than the default tree
-    for p, v in zip(start, initial, strict=True):
-        body = pymunk.Body(1.0, float("inf"))
-        body.position = tuple(p)
-        body.velocity = tuple(v)
-        shape = pymunk.Circle(body, knobs.radius * (1 - skin))
-        shape.friction = 0.0
-        space.add(body, shape)
-    if knobs.layout == "corridor":
-        for x0 in offsets[::n, 0]:
-            for side in (-1, 1):
-                y = side * (knobs.width / 2 + 0.05)
-                ends = (x0 - knobs.walk_extent, y), (x0 + knobs.walk_extent, y)
-                space.add(pymunk.Segment(space.static_body, *ends, 0.05))
-
+    space = _space(knobs, start, initial, offsets[::n, 0])
     fields = pymunk.batch.BodyFields.POSITION | pymunk.batch.BodyFields.VELOCITY
     reader, writer = pymunk.batch.Buffer(), pymunk.batch.Buffer()
     rows = len(space.bodies)  # dynamic bodies come first; a static body may add one more row

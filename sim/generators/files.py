@@ -108,18 +108,7 @@ def read_trajectory_file(
     data = data[np.lexsort((data[:, 0], data[:, 1]))]  # by agent, then frame
     frame, agent, line = data[:, 0], data[:, 1], data[:, 4].astype(int)
     track = _tracks(path, frame, agent, line, split_gaps)
-    steps = np.diff(frame)[(track[1:] == track[:-1])]
-    step = float(steps.min()) if len(steps) else 1.0
-    if every > 1 and len(steps) and not np.isclose(step, every):
-        raise InputError(
-            f"{path}: every = {every} keeps frames {step:g} apart, not {every}: the file's own "
-            f"frame step does not divide {every}, and a step of {step:g} frames read as one "
-            "would multiply every speed; choose every as a multiple of the file's step"
-        )
-    index = (frame - frame.min()) / step
-    if not np.allclose(index, np.round(index)):
-        raise InputError(f"{path}: frame ids are not on a uniform grid of step {step:g}")
-    index = np.round(index).astype(np.int64)
+    index = _frame_index(path, frame, track, every)
     bounds = np.flatnonzero(np.diff(track, prepend=-1, append=track[-1] + 1))
     first, last = index[bounds[:-1]], index[bounds[1:] - 1]  # per track, in track order
     ids = _track_ids(agent[bounds[:-1]])
@@ -139,6 +128,24 @@ def read_trajectory_file(
             if end == stop:
                 break
     return scenes
+
+
+def _frame_index(path: Path, frame: np.ndarray, track: np.ndarray, every: int) -> np.ndarray:
+    """Each row's step from the file's first frame, on the grid of the smallest frame step
+    within a track; a grid the frames are not on, or an ``every`` the step does not divide, is
+    one line."""
+    steps = np.diff(frame)[(track[1:] == track[:-1])]
+    step = float(steps.min()) if len(steps) else 1.0
+    if every > 1 and len(steps) and not np.isclose(step, every):
+        raise InputError(
+            f"{path}: every = {every} keeps frames {step:g} apart, not {every}: the file's own "
+            f"frame step does not divide {every}, and a step of {step:g} frames read as one "
+            "would multiply every speed; choose every as a multiple of the file's step"
+        )
+    index = (frame - frame.min()) / step
+    if not np.allclose(index, np.round(index)):
+        raise InputError(f"{path}: frame ids are not on a uniform grid of step {step:g}")
+    return np.round(index).astype(np.int64)
 
 
 def _rows(path: Path, format: str = "ethucy", labels: tuple[str, ...] = ()) -> np.ndarray:

@@ -38,9 +38,10 @@ from sim.experiment.config import Execution, ExperimentConfig
 from sim.experiment.folders import MARKER, claim, mark_run
 from sim.experiment.jobs import JobResult, prepare
 from sim.experiment.outputs import COLUMNS, git_commit, tidy_rows, write_report, write_results
+from sim.experiment.storage import check_storage
 from sim.experiment.sweep import layered, plan, run_together
 from sim.experiment.trials import trial_results, trial_seconds
-from sim.experiment.tuning import check_storage, run_tuning
+from sim.experiment.tuning import run_tuning
 from sim.studies.bench_config import LEAN, BenchConfig, references, seed_count
 from sim.studies.bench_estimate import estimate_bench, estimate_line
 from sim.studies.leaderboard import leaderboard, leaderboard_markdown

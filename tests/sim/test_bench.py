@@ -372,7 +372,7 @@ def test_a_shared_storage_keeps_two_benchmarks_apart(tmp_path, kind):
     once took the first's and ran none)."""
     import optuna
 
-    from sim.experiment.tuning import storage_of
+    from sim.experiment.storage import storage_of
 
     url = f"sqlite:///{tmp_path / 'shared.db'}" if kind == "sqlite" else f"journal:{tmp_path / 'j'}"
     storage = storage_of(url)
