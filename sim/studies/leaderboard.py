@@ -302,7 +302,12 @@ def _parallel_text(run: dict[str, Any]) -> str:
     """How the jobs shared the machine: ``N jobs at a time``, or on which Ray cluster."""
     if run.get("backend") == "ray":
         address = run.get("ray_address")
-        return f"on the Ray cluster at {address}" if address else f"on Ray with {run['jobs']} CPUs"
+        cpus = run["jobs"]
+        return (
+            f"on the Ray cluster at {address}"
+            if address
+            else f"on a local Ray cluster of {cpus} CPUs"
+        )
     return f"{run['jobs']} job{'s' if run['jobs'] != 1 else ''} at a time"
 
 

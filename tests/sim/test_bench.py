@@ -708,3 +708,14 @@ def test_the_ranking_transfer_is_one_for_one_ranking_and_falls_as_it_reverses():
     boards = root / "docs" / "leaderboards"
     text = ranking.report(boards / "density", boards / "density-60")
     assert "Kendall's tau +0.65" in text and "| coresets | 0.423 | 1 | 0.423 | 1 | +0 |" in text
+
+
+def test_a_board_says_how_its_jobs_shared_the_machine():
+    """Locally its jobs at a time (one job, singular); on Ray the cluster, not ``--jobs``."""
+    from sim.studies.leaderboard import _parallel_text
+
+    assert _parallel_text({"jobs": 1}) == "1 job at a time"
+    assert _parallel_text({"jobs": 2, "backend": "local"}) == "2 jobs at a time"
+    assert _parallel_text({"jobs": 2, "backend": "ray"}) == "on a local Ray cluster of 2 CPUs"
+    ray = {"jobs": 1, "backend": "ray", "ray_address": "10.0.0.5:6379"}
+    assert _parallel_text(ray) == "on the Ray cluster at 10.0.0.5:6379"
