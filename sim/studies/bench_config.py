@@ -229,7 +229,9 @@ class BenchConfig:
         """``quick``, ``reduced`` (any size below the protocol's) or ``protocol``."""
         if self.base.quick:
             return "quick"
-        full = ExperimentConfig(self.base.scenario, self.base.methods[:1])
+        full = ExperimentConfig(  # the default sizes; a family of --scenarios-dir found
+            self.base.scenario, self.base.methods[:1], scenarios_dir=self.base.scenarios_dir
+        )
         train = self.base.settings.get("train", {})
         smaller = (
             self.base.epochs < full.epochs
