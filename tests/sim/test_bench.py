@@ -719,3 +719,18 @@ def test_a_board_says_how_its_jobs_shared_the_machine():
     assert _parallel_text({"jobs": 2, "backend": "ray"}) == "on a local Ray cluster of 2 CPUs"
     ray = {"jobs": 1, "backend": "ray", "ray_address": "10.0.0.5:6379"}
     assert _parallel_text(ray) == "on the Ray cluster at 10.0.0.5:6379"
+
+
+def test_a_board_of_a_family_from_a_scenarios_dir_is_sized_without_parsing_it_bare():
+    """The fitted crowds' board failed after its last job: its sizes were judged on the scenario
+    parsed without ``--scenarios-dir``."""
+    from pathlib import Path
+
+    folder = Path(__file__).resolve().parents[2] / "docs" / "calibration" / "hotel"
+    base = ExperimentConfig(
+        "calibrated_eth_ucy_hotel_0.25",
+        methods=("finetune", "cv"),
+        epochs=2,
+        scenarios_dir=(folder,),
+    )
+    assert BenchConfig(base, trials=2).sizes() == "reduced"
