@@ -190,16 +190,16 @@ def _protocol_text(board: dict[str, Any]) -> str:
     given = _settings_text(board["run"]["settings"]) or "none"
     pruned = ", those worse than the median so far stopped early" if board.get("prune") else ""
     replay = board.get("replay_budget")
-    tuning = (
-        f"{board['trials']} Optuna trials a method (its defaults first{pruned}"
-        f"{_sampler_text(board)}) "
-        f"on `{board['tune_scenario']}`{_tuning_seed_text(board)} scored on validation data only"
-        f"{_race_text(board)}"
-    )
     if board.get("tuned_from"):
         tuning = (
             f"**no tuning here**: every method's settings as another benchmark chose them "
             f"(`{board['tuned_from']['file']}`, tuned on `{board['tune_scenario']}`)"
+        )
+    else:
+        tuning = (
+            f"{board['trials']} Optuna trials a method (its defaults first{pruned}"
+            f"{_sampler_text(board)}) on `{board['tune_scenario']}`{_tuning_seed_text(board)} "
+            f"scored on validation data only{_race_text(board)}"
         )
     return (
         f"{sizes}: {board['epochs']} epochs a task at batch {board['batch_scenes']}, K = "
