@@ -10,8 +10,8 @@ method's figure is the best of ``--repeats`` rounds, the methods interleaved wit
     python benchmarks/train_throughput.py [--scenario crowd_noise_0.1,0.2] [--epochs 10]
         [--repeats 3] [--threads 1] [--methods all]
 
-A method may carry options, to compare variants in one run: ``--methods
-finetune,derpp,derpp:replay_loss=point``.
+A method may carry options and a backbone, to compare variants in one run: ``--methods
+finetune,derpp,derpp:replay_loss=point,finetune@stgat-cell``.
 
 Run it on 2-agent scenes too (``--scenario crowd_radius_0.1,0.2``), where fixed costs weigh more.
 """
@@ -34,10 +34,12 @@ from sim.scenario import parse_scenario
 
 
 def build_method(spec: str) -> Method:
-    """The method ``spec`` names: ``NAME`` or ``NAME:KEY=VALUE:...``."""
+    """The method ``spec`` names: ``NAME`` or ``NAME:KEY=VALUE:...``, then ``@BACKBONE``."""
+    spec, _, backbone = spec.partition("@")
     name, *options = spec.split(":")
     settings = parse_settings([f"{name}.{option}" for option in options]).get(name, {})
-    return get_method(name)(ModelConfig(), settings)
+    model = ModelConfig(backbone=backbone) if backbone else ModelConfig()
+    return get_method(name)(model, settings)
 
 
 def training_rate(spec: str, tasks: list[Task], epochs: int) -> tuple[float, int]:
@@ -75,7 +77,7 @@ def main() -> None:
         for name in names:
             build_method(name)
         specs = parse_scenario(args.scenario)
-    except (InputError, KeyError) as error:  # get_method's KeyError names the known methods
+    except (InputError, KeyError, ValueError) as error:  # KeyError: get_method names the methods
         print(f"error: {error.args[0]}", file=sys.stderr)
         sys.exit(2)
     torch.set_num_threads(args.threads)

@@ -1,0 +1,187 @@
+"""An LSTM fed its own outputs, rolled out as one autograd node with a hand-written backward.
+
+The decoder's twelve steps were about 70 % of a training step, spent less in arithmetic than in
+the calls around it and in passes over memory: per step an embedding, two gate products, five
+activations and the output layer, each an autograd node, and twice as many again backwards.
+Here one product per step makes the gates from ``[h, x, 1]`` (the embedding and both biases
+folded in: the input is 2-d, so ``W_ih (W_e x + b_e)`` is ``(W_ih W_e) x`` plus a constant), the
+gates are ordered input, forget, output, cell so two calls activate them, and the backward walks
+the steps in reverse with one product and one fused pass per step (:func:`_cell_backward`), the
+weights' gradients taken after the loop as two products over all steps at once. Training
+reaches the same function of the same parameters as :class:`torch.nn.LSTMCell`, summed in
+another order (rounding): ``tests/c2inet/test_rollout.py`` holds it to the cell in float64.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import torch
+from numba import njit
+from torch.autograd.function import once_differentiable
+
+_ORDER = (0, 1, 3, 2)  # PyTorch's gate blocks (input, forget, cell, output) as i, f, o, g
+
+
+def rollout_weights(embed: torch.nn.Linear, cell: torch.nn.LSTMCell) -> torch.Tensor:
+    """The gates' weight ``[W_hh | W_ih W_e | b]`` (4H, H + in + 1), blocks ordered i, f, o, g,
+    as differentiable products of the modules' own parameters (their state dicts unchanged)."""
+    bias = cell.bias_ih + cell.bias_hh + cell.weight_ih @ embed.bias
+    weight = torch.cat([cell.weight_hh, cell.weight_ih @ embed.weight, bias[:, None]], 1)
+    return torch.cat([weight.chunk(4)[k] for k in _ORDER])
+
+
+@njit(cache=True, fastmath=True, nogil=True, error_model="numpy")
+def _cell_backward_cpu(dh, dc, acts, tanhs, c_prev, d_gates):  # pragma: no cover (compiled)
+    one = np.float32(1.0)
+    hidden = dh.shape[1]
+    for r in range(dh.shape[0]):
+        a, d, dhr, dcr, tr, cr = acts[r], d_gates[r], dh[r], dc[r], tanhs[r], c_prev[r]
+        for j in range(hidden):
+            i, f, o, g = a[j], a[hidden + j], a[2 * hidden + j], a[3 * hidden + j]
+            t, d_h = tr[j], dhr[j]
+            d_c = dcr[j] + d_h * o * (one - t * t)
+            d[j] = d_c * g * i * (one - i)
+            d[hidden + j] = d_c * cr[j] * f * (one - f)
+            d[2 * hidden + j] = d_h * t * o * (one - o)
+            d[3 * hidden + j] = d_c * i * (one - g * g)
+            dcr[j] = d_c * f
+
+
+def _cell_backward(dh, dc, acts, tanhs, c_prev, d_gates) -> None:
+    """One step back through the cell: the gates' gradient (R, 4H) into ``d_gates`` and the
+    cell state's, carried one step back, into ``dc``, from the hidden state's ``dh``. One pass
+    over memory on a CPU in float32 (compiled), tensor operations elsewhere."""
+    if dh.device.type == "cpu" and dh.dtype == torch.float32:
+        arrays = (t.numpy() for t in (dh, dc, acts, tanhs, c_prev, d_gates))
+        _cell_backward_cpu(*arrays)
+        return
+    i, f, o, g = acts.split(dh.shape[1], 1)
+    di, df, do, dg = d_gates.split(dh.shape[1], 1)
+    dc.addcmul_(dh * o, 1 - tanhs * tanhs)
+    torch.mul(dh * tanhs, o * (1 - o), out=do)
+    torch.mul(dc * g, i * (1 - i), out=di)
+    torch.mul(dc * c_prev, f * (1 - f), out=df)
+    torch.mul(dc * i, 1 - g * g, out=dg)
+    dc.mul_(f)
+
+
+class _Buffers:
+    """Flat buffers handed out again once a rollout is done with them. A training step's
+    rollout holds about 25 MB; fresh, every page of it faults in (glibc maps blocks that large
+    anew each time), which cost about 15 % of a decoder step. Best fit first; a new buffer has
+    room for a batch a quarter larger; at most ``keep`` are kept, none over ``largest`` bytes."""
+
+    def __init__(self, keep: int = 8, largest: int = 64 << 20):
+        self.free: list[torch.Tensor] = []
+        self.keep, self.largest = keep, largest
+
+    def take(self, like: torch.Tensor, *shape: int) -> torch.Tensor:
+        size = math.prod(shape)
+        fits = [
+            k
+            for k, b in enumerate(self.free)
+            if b.numel() >= size and b.dtype == like.dtype and b.device == like.device
+        ]
+        if fits:
+            buffer = self.free.pop(min(fits, key=lambda k: self.free[k].numel()))
+        else:
+            buffer = like.new_empty(size + size // 4)
+        return buffer[:size].view(shape)
+
+    def give(self, *views: torch.Tensor) -> None:
+        for view in views:
+            buffer = view if view._base is None else view._base
+            if buffer.numel() * buffer.element_size() <= self.largest:
+                self.free.append(buffer)
+        del self.free[: -self.keep]
+
+
+_BUFFERS = _Buffers()
+
+
+def _run(h, x, weight, w_out, b_out, steps: int, residual: bool, keep: bool):
+    """The forward loop: outputs (steps, R, out) and, with ``keep``, what the backward needs:
+    every step's gate inputs ``[h, x, 1]`` (steps + 1, R, H + out + 1), activations (steps, R,
+    4H), cell states (steps + 1, R, H) and their tanh (steps, R, H). Without ``keep`` two of
+    each are reused (evaluation at thousands of rows)."""
+    rows, hidden = h.shape
+    width = x.shape[1]
+    kept = steps + 1 if keep else 2
+    hx = _BUFFERS.take(h, kept, rows, hidden + width + 1)
+    hx[..., -1] = 1
+    cs = _BUFFERS.take(h, kept, rows, hidden)
+    cs[0] = 0
+    acts = _BUFFERS.take(h, steps if keep else 1, rows, 4 * hidden)
+    tanhs = _BUFFERS.take(h, steps if keep else 1, rows, hidden)
+    outs = h.new_empty(steps, rows, width)
+    hx[0, :, :hidden], hx[0, :, hidden:-1] = h, x
+    weight_t, w_out_t = weight.t(), w_out.t()
+    for t in range(steps):
+        now, then = (t, t + 1) if keep else (t % 2, (t + 1) % 2)
+        a = torch.mm(hx[now], weight_t, out=acts[t if keep else 0])
+        a[:, : 3 * hidden].sigmoid_()
+        a[:, 3 * hidden :].tanh_()
+        i, f, o, g = a.split(hidden, 1)
+        c = torch.mul(f, cs[now], out=cs[then]).addcmul_(i, g)
+        h_new = torch.mul(o, torch.tanh(c, out=tanhs[t if keep else 0]), out=hx[then, :, :hidden])
+        x_new = torch.addmm(b_out, h_new, w_out_t, out=outs[t])
+        if residual:
+            x_new += hx[now, :, hidden:-1]
+        hx[then, :, hidden:-1] = x_new
+    return outs, (hx, cs, acts, tanhs)
+
+
+class _Rollout(torch.autograd.Function):
+    @staticmethod
+    def forward(ctx, h, x, weight, w_out, b_out, steps, residual):
+        outs, kept = _run(h, x, weight, w_out, b_out, steps, residual, keep=True)
+        ctx.save_for_backward(weight, w_out, *kept)
+        ctx.residual = residual
+        return outs
+
+    @staticmethod
+    @once_differentiable
+    def backward(ctx, d_outs):
+        weight, w_out, hx, cs, acts, tanhs = ctx.saved_tensors
+        steps, rows, width = d_outs.shape
+        hidden = cs.shape[-1]
+        d_gates = _BUFFERS.take(acts, *acts.shape)  # every step's, for the weights' products
+        d_xs = _BUFFERS.take(d_outs, *d_outs.shape)  # the gradient at every output, all paths
+        dh = hx.new_zeros(rows, hidden)
+        dc = hx.new_zeros(rows, hidden)
+        carry = hx.new_zeros(rows, width)  # the gradient reaching x_t through the later steps
+        to_h = weight[:, :hidden].contiguous()  # the gates' weights on h_{t-1} and on x_{t-1}
+        to_x = weight[:, hidden:-1].contiguous()
+        for t in reversed(range(steps)):
+            dx = torch.add(d_outs[t], carry, out=d_xs[t])
+            dh.addmm_(dx, w_out)
+            _cell_backward(dh, dc, acts[t], tanhs[t], cs[t], d_gates[t])
+            dh = d_gates[t] @ to_h
+            carry = torch.addmm(dx, d_gates[t], to_x) if ctx.residual else d_gates[t] @ to_x
+        d_weight = (hx[:steps].flatten(0, 1).t() @ d_gates.flatten(0, 1)).t()
+        d_out = (hx[1:].flatten(0, 1).t() @ d_xs.flatten(0, 1)).t()  # (out, H + out + 1)
+        _BUFFERS.give(hx, cs, acts, tanhs, d_gates, d_xs)
+        return dh, carry, d_weight, d_out[:, :hidden], d_out[:, -1], None, None
+
+
+def lstm_rollout(
+    h: torch.Tensor,
+    x: torch.Tensor,
+    weight: torch.Tensor,
+    w_out: torch.Tensor,
+    b_out: torch.Tensor,
+    steps: int,
+    residual: bool,
+) -> torch.Tensor:
+    """``steps`` outputs (steps, R, out) of an LSTM started at hidden state ``h`` (R, H) and
+    cell state zero, each step's input its last output (``x``, (R, out), the first): the output
+    is ``W_out h + b_out``, added to the last one with ``residual``. ``weight`` makes the gates
+    from ``[h, x, 1]`` (:func:`rollout_weights`)."""
+    args = (h, x, weight, w_out, b_out)
+    if torch.is_grad_enabled() and any(a.requires_grad for a in args):
+        return _Rollout.apply(*args, steps, residual)
+    outs, kept = _run(*args, steps, residual, keep=False)
+    _BUFFERS.give(*kept)
+    return outs

@@ -1,0 +1,72 @@
+"""The decoder's rollout (one autograd node, a hand-written backward) is the LSTM cell it
+replaces: the same outputs and gradients in float64, within float32 rounding through the compiled
+backward, with or without gradients, and its reused buffers never shared by two live rollouts."""
+
+import pytest
+import torch
+
+from c2inet.backbones import BACKBONES
+from c2inet.backbones.rollout import _BUFFERS
+from c2inet.backbones.stgat import Decoder
+
+
+def decoders(residual: bool, dtype=torch.float64) -> tuple[Decoder, torch.Tensor, torch.Tensor]:
+    torch.manual_seed(0)
+    decoder = Decoder(10, residual=residual).to(dtype)
+    torch.nn.init.normal_(decoder.out.weight, 0, 0.3)  # a residual decoder starts at zero
+    cond = torch.randn(3, 7, 10, dtype=dtype, requires_grad=True)
+    last_rel = torch.randn(7, 2, dtype=dtype, requires_grad=True)
+    return decoder, cond, last_rel
+
+
+def outputs_and_gradients(decoder, kernel, cond, last_rel, calls=1):
+    decoder.kernel = kernel
+    outs = [decoder(cond, last_rel) for _ in range(calls)]  # all alive before the backward
+    weights = torch.linspace(-1, 1, outs[0].numel(), dtype=cond.dtype).view(outs[0].shape)
+    loss = sum(((k + 1) * out * weights).sum() for k, out in enumerate(outs))
+    return outs[0], torch.autograd.grad(loss, [cond, last_rel, *decoder.parameters()])
+
+
+@pytest.mark.parametrize("residual", [True, False])
+def test_the_rollout_is_the_lstm_cell_with_the_same_gradients(residual):
+    decoder, cond, last_rel = decoders(residual)
+    out, grads = outputs_and_gradients(decoder, "rollout", cond, last_rel)
+    ref, ref_grads = outputs_and_gradients(decoder, "cell", cond, last_rel)
+    torch.testing.assert_close(out, ref, rtol=1e-12, atol=1e-12)
+    assert len(grads) == 2 + len(list(decoder.parameters()))
+    for grad, expected in zip(grads, ref_grads, strict=True):
+        assert expected.abs().max() > 0  # every parameter takes part
+        torch.testing.assert_close(grad, expected, rtol=1e-10, atol=1e-12)
+    with torch.no_grad():  # the lean loop: two steps kept, the same outputs
+        torch.testing.assert_close(decoder.train()(cond, last_rel), ref, rtol=0, atol=1e-12)
+
+
+def test_in_float32_the_compiled_backward_stays_within_rounding_of_the_cell():
+    decoder, cond, last_rel = decoders(True, torch.float32)
+    out, grads = outputs_and_gradients(decoder, "rollout", cond, last_rel)
+    ref, ref_grads = outputs_and_gradients(decoder, "cell", cond, last_rel)
+    torch.testing.assert_close(out, ref, rtol=1e-5, atol=1e-5)
+    for grad, expected in zip(grads, ref_grads, strict=True):
+        assert (grad - expected).abs().max() <= 1e-5 * expected.abs().max()
+
+
+def test_rollouts_alive_at_once_keep_their_own_buffers_and_a_finished_one_is_reused():
+    decoder, cond, last_rel = decoders(True, torch.float32)
+    # three forward passes before one backward (a method decoding twice in a step)
+    _, grads = outputs_and_gradients(decoder, "rollout", cond, last_rel, calls=3)
+    _, ref_grads = outputs_and_gradients(decoder, "cell", cond, last_rel, calls=3)
+    for grad, expected in zip(grads, ref_grads, strict=True):
+        assert (grad - expected).abs().max() <= 1e-5 * expected.abs().max()
+    kept = {b.data_ptr() for b in _BUFFERS.free}
+    decoder.kernel = "rollout"
+    decoder(cond, last_rel).sum().backward()  # a step: takes buffers and gives them back
+    assert kept and {b.data_ptr() for b in _BUFFERS.free} <= kept
+
+
+def test_stgat_decodes_through_the_rollout_and_stgat_cell_through_the_cell():
+    cond, last_rel = torch.randn(2, 5, 8, requires_grad=True), torch.randn(5, 2)
+    nodes = {}
+    for name in ("stgat", "stgat-cell"):
+        out = BACKBONES[name](cond_dim=8).decode(cond, last_rel)
+        nodes[name] = type(out.grad_fn.next_functions[0][0]).__name__  # under the unflatten
+    assert nodes == {"stgat": "_RolloutBackward", "stgat-cell": "StackBackward0"}
