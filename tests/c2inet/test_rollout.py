@@ -70,3 +70,13 @@ def test_stgat_decodes_through_the_rollout_and_stgat_cell_through_the_cell():
         out = BACKBONES[name](cond_dim=8).decode(cond, last_rel)
         nodes[name] = type(out.grad_fn.next_functions[0][0]).__name__  # under the unflatten
     assert nodes == {"stgat": "_RolloutBackward", "stgat-cell": "StackBackward0"}
+
+
+def test_a_second_backward_through_one_rollout_is_refused():
+    """Its activations become their gradients in the backward (and its buffers go back to be
+    reused), so a retained graph cannot be walked twice: that is an error, not wrong numbers."""
+    decoder, cond, last_rel = decoders(True, torch.float32)
+    out = decoder(cond, last_rel).sum()
+    out.backward(retain_graph=True)
+    with pytest.raises(RuntimeError, match="backward once"):
+        out.backward()
