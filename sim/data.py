@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -45,11 +46,19 @@ class Domain:
     stats: dict[str, float] = field(default_factory=dict)
     hash: str = ""
 
-    def windows(self, split: str, stride: int = 1, min_agents: int = 1) -> Windows | None:
-        """Learner windows of one split (None when the split has none)."""
+    def windows(
+        self, split: str, stride: int = 1, share: float = 1.0, min_agents: int = 1
+    ) -> Windows | None:
+        """Learner windows of one split (None when the split has none), every ``stride`` frames;
+        with ``share`` < 1 only the first share of them in the recording's order (rounded up)."""
         parts = [cut_windows(s, stride, min_agents) for s in self.scenes[split]]
         parts = [p for p in parts if p is not None]
-        return Windows.concat(parts) if parts else None
+        if not parts:
+            return None
+        windows = Windows.concat(parts)
+        if share < 1:
+            windows = windows.subset(np.arange(math.ceil(share * len(windows))))
+        return windows
 
     def summary(self) -> dict[str, Any]:
         """What a run and ``summary.json`` say about the domain: knobs, split sizes, statistics

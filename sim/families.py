@@ -72,6 +72,7 @@ class Family:
     values: dict[str, dict[str, Any]] = field(default_factory=dict)
     unit: str = "m"  # of the positions: metres, or pixels (a recording not yet scaled)
     stride: int = 1  # frames between the starts of two training windows of a scene
+    share: float = 1.0  # the first share of its training windows, in the recording's order
     data_root: str = ""  # the data root's folder its files are relative to ("": its own folder)
     download: str = ""  # what to put in that folder, and where to get it
 
@@ -150,15 +151,19 @@ def toml_table(raw: dict, key: str, path: Path) -> dict:
     return value
 
 
-def window_stride(table: dict[str, Any], where: str) -> int:
-    """The ``[windows]`` table's training-window stride (1 to 100 frames; 1 when absent)."""
-    unknown = sorted(set(table) - {"stride"})
+def window_options(table: dict[str, Any], where: str) -> tuple[int, float]:
+    """The ``[windows]`` table's training-window ``stride`` (1 to 100 frames; 1 when absent)
+    and ``share`` (the first share of the training windows, in the recording's order, in
+    (0, 1]; 1 when absent: the first tenth is ``share = 0.1``)."""
+    unknown = sorted(set(table) - {"stride", "share"})
     if unknown:
-        raise InputError(f"{where}: [windows] {unknown[0]!r}: only 'stride' is known")
-    stride = table.get("stride", 1)
+        raise InputError(f"{where}: [windows] {unknown[0]!r}: only 'stride' and 'share' are known")
+    stride, share = table.get("stride", 1), table.get("share", 1.0)
     if isinstance(stride, bool) or not isinstance(stride, int) or not 1 <= stride <= 100:
         raise InputError(f"{where}: windows.stride={stride!r}: expected an integer in [1, 100]")
-    return stride
+    if isinstance(share, bool) or not isinstance(share, int | float) or not 0 < share <= 1:
+        raise InputError(f"{where}: windows.share={share!r}: expected a number in (0, 1]")
+    return stride, float(share)
 
 
 def _read_toml(path: Path) -> dict[str, Any]:
@@ -200,7 +205,7 @@ def load_family(path: Path) -> Family:
     for name, table in values.items():
         if not re.fullmatch(VALUE_NAME, name) or not isinstance(table, dict):
             raise InputError(f"{path}: bad value table {name!r}")
-    stride = window_stride(toml_table(raw, "windows", path), str(path))
+    stride, share = window_options(toml_table(raw, "windows", path), str(path))
     unit = raw.get("unit", "m")
     if unit not in UNITS:
         raise InputError(f"{path}: unit {unit!r}: expected one of {', '.join(UNITS)}")
@@ -224,6 +229,7 @@ def load_family(path: Path) -> Family:
         values=values,
         unit=unit,
         stride=stride,
+        share=share,
         data_root=data_root,
         download=str(download),
     )

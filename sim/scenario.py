@@ -15,7 +15,7 @@ from typing import Any
 
 from c2inet.errors import InputError, did_you_mean, quote
 from c2inet.options import build
-from sim.families import Family, Splits, available_families, load_family, window_stride
+from sim.families import Family, Splits, available_families, load_family, window_options
 
 MAX_DOMAINS = 64
 MAX_LABEL = 32  # characters of a value as written in a domain name
@@ -118,8 +118,8 @@ def _split_family(part: str, families: dict[str, Path]) -> tuple[str, str]:
 
 
 def with_overrides(family: Family, overrides: dict[str, Any]) -> Family:
-    """``family`` with knob defaults, split sizes (``splits.NAME`` keys) and the training-window
-    stride (``windows.stride``) replaced."""
+    """``family`` with knob defaults, split sizes (``splits.NAME`` keys) and the training
+    windows' stride and share (``windows.stride``, ``windows.share``) replaced."""
     if not overrides:
         return family
 
@@ -134,8 +134,10 @@ def with_overrides(family: Family, overrides: dict[str, Any]) -> Family:
     if unknown:
         raise InputError(f"--set data.splits.{unknown[0]}: expected splits.train, .val or .test")
     sizes = build(Splits, {**vars(family.splits), **splits}, "--set data.splits")
-    stride = window_stride({"stride": family.stride, **windows}, "--set data")
-    return replace(family, defaults={**family.defaults, **knobs}, splits=sizes, stride=stride)
+    table = {"stride": family.stride, "share": family.share, **windows}
+    stride, share = window_options(table, "--set data")
+    defaults = {**family.defaults, **knobs}
+    return replace(family, defaults=defaults, splits=sizes, stride=stride, share=share)
 
 
 def parse_scenario(

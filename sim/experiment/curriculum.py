@@ -92,8 +92,10 @@ def make_tasks(
     for spec in progress_bar(specs, desc="domains", unit="domain", transient=True):
         domain = build_domain(spec, seed, cache, _splits(spec, quick), workers, memory_budget)
         splits = {}
-        for split in SPLITS:  # training windows every family.stride frames, the others all
-            windows = domain.windows(split, spec.family.stride if split == "train" else 1)
+        for split in SPLITS:  # training windows as the family says, the others all
+            family, train = spec.family, split == "train"
+            stride, share = (family.stride, family.share) if train else (1, 1.0)
+            windows = domain.windows(split, stride, share)
             if windows is not None and quick and len(windows) > QUICK_WINDOWS:
                 windows = windows.subset(np.arange(QUICK_WINDOWS))
             splits[split] = windows

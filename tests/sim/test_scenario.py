@@ -4,6 +4,7 @@ import contextlib
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -207,3 +208,27 @@ def test_a_training_window_stride_thins_training_windows_only(tmp_path):
     )
     (spec,) = parse_scenario("strided_0.1", [tmp_path])
     assert spec.family.stride == 5
+
+
+def test_a_training_share_keeps_the_first_training_windows_only(tmp_path):
+    """``--set data.windows.share=0.1`` (or ``[windows] share``): the first tenth of the
+    training windows, in the recording's order; validation and test keep every window; a share
+    outside (0, 1] is one line."""
+    from sim.experiment.curriculum import learner_tasks
+
+    (every,) = learner_tasks("eth_ucy_eth", cache=tmp_path)
+    (tenth,) = learner_tasks("eth_ucy_eth", data={"windows.share": 0.1}, cache=tmp_path)
+    assert len(tenth.train) == -(-len(every.train) // 10)
+    # the leading windows, exactly: the first of the full set
+    head = every.train.subset(np.arange(len(tenth.train)))
+    np.testing.assert_array_equal(tenth.train.positions, head.positions)
+    assert len(tenth.test) == len(every.test)
+    for share in (0, 1.5, True, "0.1"):
+        with pytest.raises(InputError, match=r"windows.share=.*\(0, 1\]"):
+            parse_scenario("eth_ucy_eth", overrides={"windows.share": share})
+    text = (SCENARIOS_DIR / "crowd_noise.toml").read_text()
+    (tmp_path / "tenth.toml").write_text(
+        text.replace("[knobs]", "[windows]\nshare = 0.1\n\n[knobs]")
+    )
+    (spec,) = parse_scenario("tenth_0.1", [tmp_path])
+    assert spec.family.share == 0.1
