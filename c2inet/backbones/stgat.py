@@ -73,6 +73,8 @@ class Decoder(nn.Module):
         self, cond_dim: int, hidden=64, embed=16, pred_len=12, residual=False, kernel="rollout"
     ):
         super().__init__()
+        if kernel not in ("rollout", "cell"):
+            raise ValueError(f"decoder kernel {kernel!r}: expected 'rollout' or 'cell'")
         self.pred_len, self.residual, self.kernel = pred_len, residual, kernel
         self.init = nn.Sequential(nn.Linear(cond_dim, hidden), nn.Tanh())
         self.embed = nn.Linear(2, embed)
@@ -131,7 +133,7 @@ class STGAT(nn.Module):
 @register("stgat-cell")
 class STGATCell(STGAT):
     """STGAT with its decoder stepped through :class:`torch.nn.LSTMCell`, as before the rollout:
-    the same parameters (checkpoints load either way), about 1.5x slower to train; the
+    the same parameters (checkpoints load either way), 1.1 to 1.3x slower to train; the
     reference the rollout is tested against."""
 
     decoder_kernel = "cell"
