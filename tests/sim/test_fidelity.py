@@ -1,15 +1,18 @@
 """The fidelity report passes a faithful family, fails an unfaithful one, and trains for real."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
+from c2inet.data import Windows
 from sim.domains import build_domain
 from sim.experiment import Execution, ExperimentConfig
+from sim.experiment.curriculum import learner_tasks
 from sim.scenario import parse_scenario
 from sim.stats import realised_summary, relative_difference, scene_profiles
-from sim.studies.fidelity import Fidelity, compare_statistics, fidelity_report
+from sim.studies.fidelity import Fidelity, compare_statistics, fidelity_report, transfer_cell
 from sim.study import main
 
 
@@ -87,3 +90,19 @@ def test_bad_input_is_one_error_line_and_exit_code_2(tmp_path, capsys, argv, mes
 def test_the_reference_is_required(capsys):
     assert main(["fidelity", "--scenario", "crowd_radius_0.1"]) == 2
     assert "required: --reference" in capsys.readouterr().err
+
+
+def test_the_sim_only_model_never_sees_a_real_training_window(tmp_path):
+    """The transfer's model of the generated domain trains on that domain alone: poisoning the
+    reference's training windows (NaN) leaves it finite on every test set, while the model
+    trained on the reference is ruined by them, so the poison would show."""
+    sim_task, real_task = learner_tasks(
+        "crowd_radius_0.2+orca_radius_0.2", quick=True, cache=tmp_path
+    )
+    poisoned = Windows(np.full_like(real_task.train.positions, np.nan), real_task.train.scene_start)
+    tasks = [sim_task, replace(real_task, train=poisoned)]
+    config = ExperimentConfig("crowd_radius_0.2", methods=("finetune",), quick=True, epochs=1)
+    from_sim = transfer_cell(0, 0, config, "finetune", tasks)
+    assert np.all(np.isfinite(from_sim["ade"])) and np.all(np.isfinite(from_sim["fde"]))
+    from_real = transfer_cell(0, 1, config, "finetune", tasks)
+    assert not np.all(np.isfinite(from_real["ade"]))
