@@ -106,3 +106,49 @@ def test_the_sim_only_model_never_sees_a_real_training_window(tmp_path):
     assert np.all(np.isfinite(from_sim["ade"])) and np.all(np.isfinite(from_sim["fde"]))
     from_real = transfer_cell(0, 1, config, "finetune", tasks)
     assert not np.all(np.isfinite(from_real["ade"]))
+
+
+def test_the_pretraining_script_runs_its_three_arms_and_its_committed_table_is_its_own(
+    tmp_path, monkeypatch
+):
+    """``scripts/pretrain_transfer.py``: per scene, the tenth alone, the fitted crowd then the
+    tenth, the fitted crowd then all (each a ``sim.run`` of fine-tuning), read back from each
+    run's metrics beside the fidelity study's columns; the committed table is what its JSON
+    prints, not edited by hand."""
+    import importlib.util
+    import subprocess
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    spec = importlib.util.spec_from_file_location(
+        "pretrain", root / "scripts" / "pretrain_transfer.py"
+    )
+    pretrain = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(pretrain)
+    commands = []
+
+    def fake_run(command, check):  # a run that ends with its last task's ADE, by arm
+        commands.append(command)
+        out = Path(command[command.index("--out") + 1])
+        out.mkdir(parents=True)
+        ade = {"tenth": 0.4, "fitted+tenth": 0.5, "fitted+all": 0.3}[out.name]
+        metrics = {"methods": {"finetune": {"ade": [[9.0, ade]], "ade_std": [[9.0, 0.01]]}}}
+        (out / "metrics.json").write_text(json.dumps(metrics))
+
+    monkeypatch.chdir(root)
+    monkeypatch.setattr(subprocess, "run", fake_run)
+    row = pretrain.scene_row("zara1", tmp_path, 3, 2)
+    scenarios = [c[c.index("--scenario") + 1] for c in commands]
+    fitted = "calibrated_eth_ucy_zara1_0.110921"
+    assert scenarios == [
+        "eth_ucy_tenth_zara1",
+        f"{fitted}+eth_ucy_tenth_zara1",
+        f"{fitted}+eth_ucy_zara1",
+    ]
+    assert all(c[c.index("--methods") + 1] == "finetune" and "--resume" not in c for c in commands)
+    assert (row["tenth"], row["fitted+tenth"], row["fitted+all"]) == (0.4, 0.5, 0.3)
+    assert row["all real alone"] == pytest.approx(0.326, abs=5e-4)  # transfer_fitted.json
+    assert pretrain.scene_row("zara1", tmp_path, 3, 2) == row and len(commands) == 3  # kept
+    committed = root / "docs" / "calibration" / "pretrain"
+    rows = json.loads((committed / "pretrain.json").read_text())
+    assert pretrain.markdown(rows, 3) == (committed / "pretrain.md").read_text()
