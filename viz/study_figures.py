@@ -166,25 +166,31 @@ def study_figure(summary: dict, path: Path) -> None:
     for r in rows:
         key = r["scenario"].rsplit("_", 1)[0] if summary.get("by") == "order" else r["scenario"]
         groups.setdefault(key, []).append(r)
-    fig, axes = plt.subplots(1, len(groups), figsize=(5 * len(groups), 3.6), squeeze=False)
+    by_order = summary.get("by") == "order"
+    # variants carry sentences for names: they read down the side, values across
+    tall = max(len(m) for m in groups.values())
+    size = (5 * len(groups), 3.6) if by_order else (9 * len(groups), 1.2 + 0.4 * tall)
+    fig, axes = plt.subplots(1, len(groups), figsize=size, squeeze=False)
     colour = as_matplotlib(method_colour(0))  # the studies' one method, C2INet-online
     for ax, (key, members) in zip(axes[0], groups.items(), strict=True):
-        names = [m["scenario"] if summary.get("by") == "order" else m["variant"] for m in members]
-        x = range(len(members))
+        names = [m["scenario"] if by_order else m["variant"] for m in members]
+        names = [n.replace("eth_ucy_", "").replace("crowd_radius_", "r ") for n in names]
+        at = list(range(len(members)))
         for metric, style in (("avg_seen_ade", "-o"), ("avg_seen_fde", "--s")):
             values = [m[metric][-1] for m in members]
             errors = [m[f"{metric}_std"][-1] for m in members]
-            ax.errorbar(
-                x, values, errors, fmt=style, capsize=3, label=metric[-3:].upper(), color=colour
-            )
-        ax.set_xticks(
-            list(x),
-            [n.replace("eth_ucy_", "").replace("crowd_radius_", "r ") for n in names],
-            rotation=20,
-            ha="right",
-            fontsize=8,
-        )
-        ax.set_ylabel("final average over tasks (m)")
+            label, fmt = metric[-3:].upper(), style if by_order else style[-1]
+            if by_order:
+                ax.errorbar(at, values, errors, fmt=fmt, capsize=3, label=label, color=colour)
+            else:
+                ax.errorbar(values, at, xerr=errors, fmt=fmt, capsize=3, label=label, color=colour)
+        if by_order:
+            ax.set_xticks(at, names, rotation=20, ha="right", fontsize=8)
+            ax.set_ylabel("final average over tasks (m)")
+        else:
+            ax.set_yticks(at, names, fontsize=8)
+            ax.invert_yaxis()  # the full model first, as in the table
+            ax.set_xlabel("final average over tasks (m), mean ± std over seeds")
         ax.set_title(key, fontsize=9)
         ax.legend(fontsize=8)
     fig.suptitle(summary["study"], fontsize=10)
