@@ -20,9 +20,9 @@ from sim.cli import method_names
 from sim.experiment import ExperimentConfig
 from sim.experiment.config import Execution, parse_settings
 from sim.experiment.estimate import describe
-from sim.studies.bench_config import BenchConfig
-from sim.studies.bench_estimate import estimate_bench
 from sim.studies.benchmark import PRESETS, SEEDS, TRIALS
+from sim.studies.benchmark.config import BenchConfig
+from sim.studies.benchmark.estimate import estimate_bench
 
 
 def main() -> None:

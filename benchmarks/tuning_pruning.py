@@ -25,8 +25,8 @@ from sim.experiment import ExperimentConfig
 from sim.experiment.config import Execution
 from sim.experiment.trials import trial_results
 from sim.experiment.tuning import run_tuning
-from sim.studies.bench_config import BenchConfig
-from sim.studies.presets import PRESETS
+from sim.studies.benchmark.config import BenchConfig
+from sim.studies.benchmark.presets import PRESETS
 
 
 def main() -> None:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from sim.data import Scene
 
@@ -81,6 +80,8 @@ def _dense_pairs(positions: np.ndarray, contact: float | None) -> tuple[float, i
 
 
 def _tree_pairs(positions: np.ndarray, contact: float | None) -> tuple[float, int]:
+    from scipy.spatial import cKDTree  # here: the studies that list these names load no scipy
+
     smallest, overlaps = np.inf, 0
     for frame in positions:
         points = frame[np.isfinite(frame[:, 0])]

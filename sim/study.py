@@ -19,12 +19,8 @@ from sim.cli import (
     parse,
     parser,
 )
-from sim.experiment import ExperimentConfig
-from sim.experiment.folders import claim
 from sim.studies.base import Study, discover, get_study
 from viz.cli import guarded
-
-STUDIES_ROOT = Path("studies")
 
 
 def listing() -> str:
@@ -35,36 +31,42 @@ def listing() -> str:
     )
 
 
-def study_parser(study: Study):
-    examples = "\n".join(f"  python -m sim.study {study.name} {e}" for e in study.examples)
-    p = parser(f"sim.study {study.name}", study.title, examples, scenarios=study.scenarios)
+def study_parser(study: Study, prog: str | None = None):
+    """``study``'s options, the shared ones first; ``prog``: the command that runs it (default
+    ``sim.study NAME``)."""
+    prog = prog or f"sim.study {study.name}"
+    examples = "\n".join(f"  python -m {prog} {e}" for e in study.examples)
+    p = parser(prog, study.title, examples, scenarios=study.scenarios)
     record = study.sweeps and study.records
     add_experiment_options(p, study.methods, record=record, loggers=study.sweeps)
-    p.add_argument(
-        "--out", type=Path, help=f"the study's folder (default {STUDIES_ROOT / study.name})"
-    )
+    p.add_argument("--out", type=Path, help=f"the study's folder (default {study.folder})")
     study.add_options(p)
     return p
 
 
-def run_study(study: Study, argv: list[str]) -> int:
+def run_study(study: Study, argv: list[str], prog: str | None = None) -> int:
     """Parse ``argv`` for ``study``, run it, write its three files and say where they are."""
-    p = study_parser(study)
+    p = study_parser(study, prog)
     args = parse(p, argv, study.scenario_required)
     if args is None:
         return 0
+    from sim.experiment import ExperimentConfig  # the engine loads once there is work
+    from sim.experiment.folders import claim
+
     options = experiment_options(args)
     if study.one_method and len(options["methods"]) != 1:
         p.error(f"--methods: {study.name} trains one method, got {args.methods!r}")
     config = ExperimentConfig(study.scenario_of(args), **options)
     execution = execution_of(args)
-    out = args.out or STUDIES_ROOT / study.name
+    out = args.out or study.default_out(args)
     if not study.sweeps:  # a study of sweeps claims its folder as a sweep
         claim(out, config, execution, args.resume, args.overwrite)
     try:
         report = study.run(args, config, execution, out, [*p.prog.split(), *argv])
     except KeyboardInterrupt:
         return interrupted(out)
+    if report is None:
+        return 0
     name = study.write(report, out)
     print(study.markdown(report))
     print(f"wrote {out}: open {name}.md (the table) and {name}.png; {name}.json", file=sys.stderr)
@@ -72,21 +74,22 @@ def run_study(study: Study, argv: list[str]) -> int:
 
 
 @guarded
-def main(argv: list[str] | None = None, name: str | None = None) -> int:
+def main(argv: list[str] | None = None, name: str | None = None, prog: str | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     if name is None:
         if not argv or argv[0] in ("-h", "--help"):
             print(listing())
             return 0 if argv else 2
         name, argv = argv[0], argv[1:]
-    return run_study(get_study(name), argv)
+    return run_study(get_study(name), argv, prog)
 
 
-def command(name: str):
-    """The console script of one study (``c2i-fidelity`` and friends)."""
+def command(name: str, prog: str | None = None):
+    """The console script of one study (``c2i-fidelity`` and friends); ``prog``: the module it
+    also runs as (``sim.bench``)."""
 
     def run(argv: list[str] | None = None) -> int:
-        return main(argv, name)
+        return main(argv, name, prog)
 
     return run
 

@@ -51,12 +51,13 @@ def bounded_float(low: float, high: float) -> Callable[[str], float]:
     return _bounded(float, "a number", low, high)
 
 
-def guarded(main: Callable[[list[str] | None], int]) -> Callable[[list[str] | None], int]:
-    """Run ``main``; bad input becomes one ``error:`` line on stderr and exit code 2."""
+def guarded(main: Callable[..., int]) -> Callable[..., int]:
+    """Run ``main`` (its command line first, then what else it takes); bad input becomes one
+    ``error:`` line on stderr and exit code 2."""
 
-    def run(argv: list[str] | None = None) -> int:
+    def run(argv: list[str] | None = None, *more: Any) -> int:
         try:
-            return main(argv)
+            return main(argv, *more)
         except InputError as error:
             print(f"error: {one_line(str(error))}", file=sys.stderr)
             return 2

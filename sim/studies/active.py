@@ -21,25 +21,23 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from c2inet.data import Windows
 from c2inet.errors import InputError
-from c2inet.evaluation import evaluate
 from c2inet.options import check_range
-from c2inet.stream import StreamLearner
-from c2inet.trainer import Task
 from sim.domains import domain_seed
-from sim.experiment import Execution, ExperimentConfig
-from sim.experiment.cells import cell_identity, run_cells
-from sim.experiment.curriculum import experiment_tasks, knob_grid, scene_windows
 from sim.generators import child_seed
 from sim.scenario import DomainSpec
 from sim.studies.base import Study, register
 from viz.cli import bounded_int
-from viz.study_figures import active_figure
+
+if TYPE_CHECKING:  # the learner and the engine load once there is work (``sim.studies.base``)
+    from c2inet.data import Windows
+    from c2inet.stream import StreamLearner
+    from c2inet.trainer import Task
+    from sim.experiment import Execution, ExperimentConfig
 
 STRATEGIES = ("error", "relative", "spread", "fixed", "random")
 
@@ -70,6 +68,8 @@ class ActiveOptions:
 
 def grid_specs(config: ExperimentConfig) -> list[DomainSpec]:
     """The grid: one numeric family that can simulate single scenes, two values or more."""
+    from sim.experiment.curriculum import knob_grid
+
     where = f"scenario {config.scenario!r} (an active curriculum's grid)"
     return knob_grid(config.specs, where, "crowd_noise_0.1..0.6:0.05", single_scenes=True)
 
@@ -86,6 +86,8 @@ class SceneSource:
         self.made: dict[tuple[int, int], Windows] = {}
 
     def draw(self, round_: int, index: int) -> Windows:
+        from sim.experiment.curriculum import scene_windows
+
         if (round_, index) not in self.made:
             spec = self.specs[index]
             seeds = [child_seed(self.seeds[index], round_, k) for k in range(self.scenes)]
@@ -106,6 +108,8 @@ def run_strategy(
 ) -> dict[str, list]:
     """One strategy's rounds (a cell): the values it chose and the held-out errors after each.
     ``baseline``: constant velocity's validation ADE at each grid value."""
+    from c2inet.stream import StreamLearner
+
     train = replace(config.train_config(seed_index), diagnostics=False, val_every=0)
     learner = StreamLearner(config.method(method), train)
     order = np.random.SeedSequence(config.seed, spawn_key=(seed_index, order_seed))
@@ -149,6 +153,11 @@ def run_active(
 ) -> dict[str, Any]:
     """Every strategy for the first method of ``config``, its runs as cells on ``execution``
     (kept in ``folder``, if given, for ``resume``); the report as a dictionary."""
+    from c2inet.evaluation import evaluate
+    from sim.experiment import Execution
+    from sim.experiment.cells import cell_identity, run_cells
+    from sim.experiment.curriculum import experiment_tasks
+
     execution = execution or Execution()
     specs = grid_specs(config)
     if config.quick:
@@ -171,19 +180,12 @@ def run_active(
     identity = cell_identity("active", config.to_json(), asdict(options), arrays=data)
     shared = (config, method, tasks, source, options, baseline)
     done = run_cells(run_strategy, cells, shared, execution, folder, identity, resume)
-    strategies = {}
-    for strategy in options.strategies:
-        runs = [done[name] for name, (chosen, *_) in cells.items() if chosen == strategy]
-        mean, worst = np.array([r["mean"] for r in runs]), np.array([r["worst"] for r in runs])
-        strategies[strategy] = {
-            "runs": len(runs),
-            "chosen": [r["chosen"] for r in runs],
-            "mean": mean.mean(0).tolist(),
-            "mean_std": mean.std(0).tolist(),
-            "worst": worst.mean(0).tolist(),
-            "worst_std": worst.std(0).tolist(),
-            "final_errors": np.mean([r["final_errors"] for r in runs], axis=0).tolist(),
-        }
+    strategies = {
+        strategy: strategy_summary(
+            [done[name] for name, (chosen, *_) in cells.items() if chosen == strategy]
+        )
+        for strategy in options.strategies
+    }
     return {
         "scenario": config.scenario,
         "family": specs[0].family.name,
@@ -197,6 +199,21 @@ def run_active(
         "seeds": config.seeds,
         "k": config.k,
         "strategies": strategies,
+    }
+
+
+def strategy_summary(runs: list[dict[str, list]]) -> dict[str, Any]:
+    """One strategy's runs: the values each chose, and the held-out errors after each round,
+    mean and std over the runs."""
+    mean, worst = np.array([r["mean"] for r in runs]), np.array([r["worst"] for r in runs])
+    return {
+        "runs": len(runs),
+        "chosen": [r["chosen"] for r in runs],
+        "mean": mean.mean(0).tolist(),
+        "mean_std": mean.std(0).tolist(),
+        "worst": worst.mean(0).tolist(),
+        "worst_std": worst.std(0).tolist(),
+        "final_errors": np.mean([r["final_errors"] for r in runs], axis=0).tolist(),
     }
 
 
@@ -239,7 +256,11 @@ class Active(Study):
     one_method = True
 
     markdown = staticmethod(active_markdown)
-    figure = staticmethod(active_figure)
+
+    def figure(self, report, path):
+        from viz.study_figures import active_figure
+
+        active_figure(report, path)
 
     def add_options(self, p):
         p.add_argument(

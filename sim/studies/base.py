@@ -13,11 +13,13 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from c2inet.registry import Registry
-from sim.experiment import Execution, ExperimentConfig
-from sim.experiment.outputs import write_report
+
+if TYPE_CHECKING:  # a study's module stays light at import (the engine, the learner and the
+    # figures load in ``run``, ``figure``): listing the studies costs no torch
+    from sim.experiment import Execution, ExperimentConfig
 
 
 def _is_study(entry: Any) -> str | None:
@@ -61,6 +63,15 @@ class Study:
     def add_options(self, p: argparse.ArgumentParser) -> None:
         """The study's own options (the shared ones are added by the command)."""
 
+    @property
+    def folder(self) -> str:
+        """Its folder without ``--out``, as the help says it."""
+        return f"studies/{self.name}"
+
+    def default_out(self, args: argparse.Namespace) -> Path:
+        """Its folder without ``--out``."""
+        return Path(self.folder)
+
     def run(
         self,
         args: argparse.Namespace,
@@ -68,8 +79,9 @@ class Study:
         execution: Execution,
         out: Path,
         argv: list[str],
-    ) -> dict[str, Any]:
-        """Compute the study into ``out``; returns its report (``NAME.json``)."""
+    ) -> dict[str, Any] | None:
+        """Compute the study into ``out``; returns its report (``NAME.json``), or None where it
+        only printed (nothing to write)."""
         raise NotImplementedError
 
     def markdown(self, report: dict[str, Any]) -> str:
@@ -82,6 +94,8 @@ class Study:
 
     def write(self, report: dict[str, Any], out: Path) -> str:
         """``NAME.json``, ``NAME.md`` and ``NAME.png`` of ``report`` in ``out``; returns NAME."""
+        from sim.experiment.outputs import write_report
+
         name = self.report or self.name
         write_report(out, name, report, self.markdown, self.figure)
         return name

@@ -25,21 +25,18 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.stats import wasserstein_distance
 
 from c2inet.errors import InputError
 from c2inet.files import write_text_atomic
 from sim.data import Scene
 from sim.domains import build_domain
 from sim.families import Splits
-from sim.generators.crowd import CONTROLLERS, LAYOUTS, STARTS
 from sim.scenario import DomainSpec, parse_scenario
 from sim.stats import PROFILES, scene_profiles
 from sim.studies.base import Study, register
-from viz.study_figures import calibration_figure
 
 # knob -> (low, high, integer); speed_spread is searched as a share of speed (it must stay below
-# half of it); the categorical knobs among the generator's options (CHOICES)
+# half of it); the categorical knobs among the generator's options (choices())
 SPACE: dict[str, tuple[float, float, bool]] = {
     "agents": (2, 40, True),
     "speed": (0.5, 3.0, False),
@@ -48,11 +45,16 @@ SPACE: dict[str, tuple[float, float, bool]] = {
     "radius": (0.15, 0.4, False),
     "horizon": (0.5, 4.0, False),
 }
-CHOICES = {  # categorical knobs: the generator's own options
-    "layout": LAYOUTS,
-    "start": STARTS,  # from rest, or at the preferred velocity (a recording's agents are moving)
-    "controller": CONTROLLERS,
-}
+
+
+def choices() -> dict[str, tuple[str, ...]]:
+    """The categorical knobs: the crowd generator's own options (loaded with the simulator)."""
+    from sim.generators.crowd import CONTROLLERS, LAYOUTS, STARTS
+
+    # start: from rest, or at the preferred velocity (a recording's agents are moving)
+    return {"layout": LAYOUTS, "start": STARTS, "controller": CONTROLLERS}
+
+
 WINDOW = 20  # frames of a compared span: the generator's scene, a window of the learner
 
 
@@ -74,6 +76,8 @@ def profile_distances(
 ) -> dict[str, float | None]:
     """Per profile, the 1-Wasserstein distance of the two sides' finite values divided by the
     reference's spread (its standard deviation; 1 where it has none)."""
+    from scipy.stats import wasserstein_distance
+
     out: dict[str, float | None] = {}
     for name in PROFILES:
         a, b = generated[name], reference[name]
@@ -163,16 +167,16 @@ def starting_point(base: DomainSpec) -> dict[str, Any]:
     """The family's own knobs as a trial's parameters (the spread as a share of speed)."""
     point = {k: base.knobs[k] for k in SPACE}
     point["speed_spread"] = point["speed_spread"] / max(point["speed"], 1e-9)
-    return {**point, **{name: base.knobs[name] for name in CHOICES}}
+    return {**point, **{name: base.knobs[name] for name in choices()}}
 
 
 def suggest(trial) -> dict[str, Any]:
-    """A trial's parameters over :data:`SPACE` and :data:`CHOICES`."""
+    """A trial's parameters over :data:`SPACE` and :func:`choices`."""
     params = {
         name: (trial.suggest_int if integer else trial.suggest_float)(name, low, high)
         for name, (low, high, integer) in SPACE.items()
     }
-    return {**params, **{n: trial.suggest_categorical(n, list(c)) for n, c in CHOICES.items()}}
+    return {**params, **{n: trial.suggest_categorical(n, list(c)) for n, c in choices().items()}}
 
 
 def _side(trial) -> dict[str, Any]:
@@ -277,7 +281,7 @@ def calibration_markdown(report: dict[str, Any]) -> str:
         b, a = before["distances"].get(name), after["distances"].get(name)
         rows.append(f"| {name} | {_num(b)} | {_num(a)} |")
     knobs = ["| knob | before | fitted |", "|---|---|---|"]
-    for name in [*SPACE, *CHOICES]:
+    for name in [*SPACE, *choices()]:
         knobs.append(f"| {name} | {before['knobs'].get(name)} | {after['knobs'].get(name)} |")
     return "\n".join(
         [
@@ -314,7 +318,11 @@ class Calibrate(Study):
     methods = "cv"
 
     markdown = staticmethod(calibration_markdown)
-    figure = staticmethod(calibration_figure)
+
+    def figure(self, report, path):
+        from viz.study_figures import calibration_figure
+
+        calibration_figure(report, path)
 
     def add_options(self, p):
         p.add_argument("--reference", required=True, help="the recording, e.g. eth_ucy_eth")

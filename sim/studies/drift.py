@@ -17,23 +17,21 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from c2inet.data import Windows
 from c2inet.errors import InputError
 from c2inet.options import check_range
-from c2inet.stream import ShiftDetector, StreamLearner
 from sim.domains import domain_seed
-from sim.experiment import Execution, ExperimentConfig
-from sim.experiment.cells import cell_identity, run_cells
-from sim.experiment.curriculum import experiment_tasks, knob_grid, scene_windows
 from sim.generators import child_seed
 from sim.scenario import DomainSpec
 from sim.studies.base import Study, register
 from viz.cli import bounded_float, bounded_int
-from viz.study_figures import drift_figure
+
+if TYPE_CHECKING:  # the learner and the engine load once there is work (``sim.studies.base``)
+    from c2inet.data import Windows
+    from sim.experiment import Execution, ExperimentConfig
 
 BOUNDARIES = ("detect", "none", "chunks")
 DEFAULT_METHODS = "finetune,ewc,derpp,c2inet-online"
@@ -61,6 +59,8 @@ class DriftOptions:
 def drift_specs(config: ExperimentConfig) -> list[DomainSpec]:
     """The probe domains: one numeric family that can simulate single scenes, two values or
     more."""
+    from sim.experiment.curriculum import knob_grid
+
     where = f"scenario {config.scenario!r} (a drift)"
     return knob_grid(config.specs, where, "crowd_noise_0.1..0.6", single_scenes=True)
 
@@ -73,6 +73,8 @@ def drift_stream(
     Scene ``i`` is simulated at ``start + (end - start) * i / (scenes - 1)`` from its own child
     seed, so the stream is the same whatever the chunking.
     """
+    from sim.experiment.curriculum import scene_windows
+
     family, start, end = specs[0].family, specs[0].value, specs[-1].value
     values = np.linspace(start, end, options.scenes)
     root = domain_seed(seed, replace(specs[0], label="drift"))
@@ -89,6 +91,8 @@ def stream_run(
 ) -> dict[str, list]:
     """One method and seed through the stream (a cell): the (chunks x probes) ADE and FDE, and
     the boundaries the detector found and the method was given."""
+    from c2inet.stream import ShiftDetector, StreamLearner
+
     train = replace(config.train_config(seed_index), diagnostics=False, val_every=0)
     learner = StreamLearner(config.method(method), train)
     detector = ShiftDetector(options.threshold)
@@ -124,6 +128,10 @@ def run_drift(
 ) -> dict[str, Any]:
     """Every method and seed of ``config`` through the drift stream, as cells on
     ``execution``'s backend (kept in ``folder``, if given, for ``resume``); the report."""
+    from sim.experiment import Execution
+    from sim.experiment.cells import cell_identity, run_cells
+    from sim.experiment.curriculum import experiment_tasks
+
     execution = execution or Execution()
     specs = drift_specs(config)
     if config.quick:
@@ -137,26 +145,15 @@ def run_drift(
     identity = cell_identity("drift", config.to_json(), asdict(options), arrays=data)
     shared = (config, chunks, probes, options)
     done = run_cells(stream_run, cells, shared, execution, folder, identity, resume)
-    methods = {}
-    for name in config.methods:
-        runs = [done[f"{name}-seed_{s}"] for s in range(config.seeds)]
-        ade = np.array([r["ade"] for r in runs])
-        fde = np.array([r["fde"] for r in runs])
-        lost = np.stack([forgetting(a, middles, probe_values) for a in ade])
-        methods[name] = {
+    methods = {
+        name: {
             "needs_boundaries": config.method(name).needs_boundaries(),
-            "ade": ade.mean(0).tolist(),
-            "ade_std": ade.std(0).tolist(),
-            "fde": fde.mean(0).tolist(),
-            "final_ade": float(ade[:, -1].mean()),
-            "final_ade_std": float(ade[:, -1].mean(1).std()),
-            "worst_final_ade": float(ade[:, -1].max(1).mean()),
-            "anytime_ade": float(ade.mean()),
-            "forgetting": lost.mean(0).tolist(),
-            "mean_forgetting": float(lost.mean()),
-            "detected": runs[0]["found"],
-            "given": runs[0]["given"],
+            **method_summary(
+                [done[f"{name}-seed_{s}"] for s in range(config.seeds)], middles, probe_values
+            ),
         }
+        for name in config.methods
+    }
     return {
         "scenario": config.scenario,
         "family": specs[0].family.name,
@@ -171,6 +168,29 @@ def run_drift(
         "seeds": config.seeds,
         "k": config.k,
         "methods": methods,
+    }
+
+
+def method_summary(
+    runs: list[dict[str, list]], middles: np.ndarray, probe_values: list[float]
+) -> dict[str, Any]:
+    """One method's seeds through the stream: the error-over-time matrix (mean and std), final,
+    worst and anytime errors, forgetting per probe, and the boundaries of its first seed."""
+    ade = np.array([r["ade"] for r in runs])
+    fde = np.array([r["fde"] for r in runs])
+    lost = np.stack([forgetting(a, middles, probe_values) for a in ade])
+    return {
+        "ade": ade.mean(0).tolist(),
+        "ade_std": ade.std(0).tolist(),
+        "fde": fde.mean(0).tolist(),
+        "final_ade": float(ade[:, -1].mean()),
+        "final_ade_std": float(ade[:, -1].mean(1).std()),
+        "worst_final_ade": float(ade[:, -1].max(1).mean()),
+        "anytime_ade": float(ade.mean()),
+        "forgetting": lost.mean(0).tolist(),
+        "mean_forgetting": float(lost.mean()),
+        "detected": runs[0]["found"],
+        "given": runs[0]["given"],
     }
 
 
@@ -220,7 +240,11 @@ class Drift(Study):
     methods = DEFAULT_METHODS
 
     markdown = staticmethod(drift_markdown)
-    figure = staticmethod(drift_figure)
+
+    def figure(self, report, path):
+        from viz.study_figures import drift_figure
+
+        drift_figure(report, path)
 
     def add_options(self, p):
         p.add_argument("--scenes", type=bounded_int(2, 100_000), default=600, help="stream length")

@@ -20,22 +20,19 @@ from __future__ import annotations
 
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from scipy.stats import wasserstein_distance
 
 from c2inet.errors import InputError
-from c2inet.evaluation import evaluate
-from c2inet.trainer import ContinualTrainer, Task
 from sim.data import Domain
-from sim.experiment import Execution, ExperimentConfig
-from sim.experiment.cells import cell_identity, run_cells
-from sim.experiment.curriculum import experiment_tasks
 from sim.scenario import parse_scenario
 from sim.stats import PROFILES, realised_summary, relative_difference, scene_profiles
 from sim.studies.base import Study, register
-from viz.study_figures import fidelity_figure
+
+if TYPE_CHECKING:  # the learner and the engine load once there is work (``sim.studies.base``)
+    from c2inet.trainer import Task
+    from sim.experiment import Execution, ExperimentConfig
 
 TOLERANCE = 0.10  # relative difference of a statistic that still counts as matched
 TRANSFER_TARGET = 1.2  # generated-trained over reference-trained error on the reference
@@ -45,6 +42,8 @@ SIDES = ("generated", "reference")
 def compare_statistics(generated: Domain, reference: Domain) -> dict[str, Any]:
     """Realised statistics of two domains (all splits), their relative differences, and the
     distances and histograms of their per-scene distributions."""
+    from scipy.stats import wasserstein_distance
+
     stats, profiles = {}, {}
     for side, domain in zip(SIDES, (generated, reference), strict=True):
         scenes = [scene for split in domain.scenes.values() for scene in split]
@@ -82,6 +81,9 @@ def transfer_cell(
 ) -> dict[str, list[float]]:
     """One row of the transfer matrix (a cell): ADE and FDE on every task of a model trained on
     task ``trained_on`` alone."""
+    from c2inet.evaluation import evaluate
+    from c2inet.trainer import ContinualTrainer
+
     train = replace(config.train_config(seed_index), diagnostics=False, val_every=0)
     trainer = ContinualTrainer(config.method(method), [tasks[trained_on]], train)
     trainer.run()
@@ -100,6 +102,10 @@ def transfer_matrix(
     """ADE and FDE (best of K, metres) of a model trained on each task alone and tested on every
     task (rows: trained on; columns: tested on), the mean over ``config.seeds`` seeds, and
     constant velocity's on every task. The trainings run as cells on ``execution``."""
+    from c2inet.evaluation import evaluate
+    from sim.experiment import Execution
+    from sim.experiment.cells import cell_identity, run_cells
+
     n = len(tasks)
     cells = {f"seed_{s}-task_{i}": (s, i) for s in range(config.seeds) for i in range(n)}
     data = [t.test.positions for t in tasks] + [t.train.positions for t in tasks]
@@ -157,6 +163,9 @@ def fidelity_report(
     """The fidelity report of ``scenario`` against ``reference`` as a dictionary (see the
     module docstring); ``config`` gives the training options of the transfer runs, which run
     as cells on ``execution`` (kept in ``folder``, if given, for ``resume``)."""
+    from sim.experiment import Execution
+    from sim.experiment.curriculum import experiment_tasks
+
     execution = execution or Execution()
     extra = list(config.scenarios_dir)
     data = config.settings.get("data")
@@ -276,7 +285,11 @@ class Fidelity(Study):
     one_method = True
 
     markdown = staticmethod(fidelity_markdown)
-    figure = staticmethod(fidelity_figure)
+
+    def figure(self, report, path):
+        from viz.study_figures import fidelity_figure
+
+        fidelity_figure(report, path)
 
     def add_options(self, p):
         p.add_argument(

@@ -10,14 +10,14 @@ outputs (a run per curriculum and variant, ``results.parquet``) plus ``study.md`
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from c2inet.errors import InputError
 from c2inet.significance import paired
-from sim.experiment import ExperimentConfig
-from sim.experiment.sweep import SweepConfig, run_sweep
 from sim.studies.base import Study, register
-from viz.study_figures import study_figure
+
+if TYPE_CHECKING:  # the engine loads once there is work (``sim.studies.base``)
+    from sim.experiment import ExperimentConfig
 
 ETH_UCY = "eth_ucy_univ,eth,zara1,zara2,hotel"  # the paper's order U-E-Z1-Z2-H
 C2INET = "c2inet-online"
@@ -87,6 +87,8 @@ PRESETS = {
 
 
 def study_sweep(study: Preset, base: ExperimentConfig, scenarios: tuple[str, ...] | None):
+    from sim.experiment.sweep import SweepConfig
+
     return SweepConfig(base, scenarios or study.scenarios, variants=tuple(study.variants.items()))
 
 
@@ -195,7 +197,11 @@ class PaperStudy(Study):
     report = "study"
 
     markdown = staticmethod(study_markdown)
-    figure = staticmethod(study_figure)
+
+    def figure(self, report, path):
+        from viz.study_figures import study_figure
+
+        study_figure(report, path)
 
     def __init__(self, name: str, preset: Preset):
         self.name, self.preset, self.title = name, preset, preset.title
@@ -211,6 +217,8 @@ class PaperStudy(Study):
         if config.methods != (C2INET,):
             raise InputError(f"--methods: the paper's studies are of {C2INET} alone")
         scenarios = tuple(args.scenario) if args.scenario else None
+        from sim.experiment.sweep import run_sweep
+
         sweep = study_sweep(self.preset, config, scenarios)
         entries = run_sweep(sweep, out, execution, args.resume, args.overwrite, argv)
         return {**summarise_study(self.preset, entries), "by": self.preset.by}

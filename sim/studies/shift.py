@@ -15,20 +15,17 @@ It writes ``shift.json``, ``shift.md`` and ``shift.png`` to ``--out`` beside the
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pyarrow.parquet as pq
-from scipy.stats import spearmanr
 
 from sim.data import Domain
-from sim.experiment import Execution, ExperimentConfig
-from sim.experiment.curriculum import knob_grid, make_tasks
-from sim.experiment.sweep import SweepConfig, run_sweep
 from sim.scenario import DomainSpec, parse_scenario
 from sim.stats import relative_difference
 from sim.studies.base import Study, register
-from viz.study_figures import shift_figure
+
+if TYPE_CHECKING:  # the engine loads once there is work (``sim.studies.base``)
+    from sim.experiment import Execution, ExperimentConfig
 
 DEFAULT_METHODS = "finetune,ewc,derpp,c2inet-online"
 COUNTS = ("overlaps", "crashes")  # statistics that count events rather than measure motion
@@ -37,6 +34,8 @@ COUNTS = ("overlaps", "crashes")  # statistics that count events rather than mea
 def shift_grid(scenario: str, config: ExperimentConfig) -> tuple[DomainSpec, list[DomainSpec]]:
     """The base domain and the shifted ones of one ``--scenario``, with the ``--set data.*``
     overrides of ``config`` (the domains its sweep trains on)."""
+    from sim.experiment.curriculum import knob_grid
+
     where = f"--scenario {scenario!r} (the base value first, the shifted ones after)"
     data = config.settings.get("data")
     specs = parse_scenario(scenario, list(config.scenarios_dir), data)
@@ -58,6 +57,10 @@ def summarise_shift(
 ) -> dict[str, Any]:
     """Forgetting and transfer gap per family, shift and method, from the sweep's tidy
     ``results.parquet``, with both measures of each shift."""
+    import pyarrow.parquet as pq
+
+    from sim.experiment.curriculum import make_tasks
+
     table = pq.read_table(out / "results.parquet").to_pandas()
     table = table[table["metric"] == "ade"]
     families = []
@@ -123,6 +126,8 @@ MIN_RANKED = 4  # fewer shifts than this make any rank correlation +-1 or close:
 def _spearman(x, y) -> float:
     """Spearman's rank correlation (NaN where a side is constant or there are fewer than
     ``MIN_RANKED`` shifts: over two points it is always +-1)."""
+    from scipy.stats import spearmanr
+
     if len(x) < MIN_RANKED or len(set(x)) < 2 or len(set(np.round(y, 12))) < 2:
         return float("nan")
     return float(spearmanr(x, y).statistic)
@@ -191,6 +196,8 @@ def run_shift(
 ) -> dict[str, Any]:
     """Run every two-task curriculum of ``scenarios`` as one sweep into ``out``; returns the
     summary."""
+    from sim.experiment.sweep import SweepConfig, run_sweep
+
     pairs = []
     for scenario in scenarios:
         first, shifted = shift_grid(scenario, base)
@@ -211,7 +218,11 @@ class Shift(Study):
     records = False  # dozens of two-task runs: their numbers are the point
 
     markdown = staticmethod(shift_markdown)
-    figure = staticmethod(shift_figure)
+
+    def figure(self, report, path):
+        from viz.study_figures import shift_figure
+
+        shift_figure(report, path)
 
     def run(self, args, config, execution, out, argv):
         return run_shift(

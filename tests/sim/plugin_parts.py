@@ -6,7 +6,7 @@ import numpy as np
 
 from sim.generators.crowd import CrowdGenerator
 from sim.studies.base import Study
-from sim.studies.presets import Preset
+from sim.studies.benchmark.presets import Preset
 from viz.loggers import Logger
 
 

@@ -16,9 +16,9 @@ from sim.experiment.jobs import JobResult, prepare
 from sim.experiment.race import race_seed
 from sim.experiment.trials import trial_seconds, validation_inputs
 from sim.experiment.tuning import TuneConfig, run_tuning
-from sim.studies.bench_config import BenchConfig
-from sim.studies.bench_estimate import estimate_bench, estimate_table
 from sim.studies.benchmark import BATCH, PRESETS
+from sim.studies.benchmark.config import BenchConfig
+from sim.studies.benchmark.estimate import estimate_bench, estimate_table
 
 BAD_LR = 1e-5  # a default that barely trains in two epochs
 
@@ -286,7 +286,7 @@ def test_the_benchmark_estimate_times_a_trial_as_tuning_runs_it_and_adds_every_j
     trials skip switched off, a job on the evaluated curriculum; the totals count every trial of
     every tuned method and every seed, and the wall time shares them over the jobs."""
     from sim.experiment.estimate import lanes_seconds
-    from sim.studies import bench_estimate as bench_module
+    from sim.studies.benchmark import estimate as bench_module
 
     timed = []
 
@@ -330,7 +330,7 @@ def test_the_estimate_counts_making_the_data_the_cache_lacks_and_makes_it_once(
     the estimate makes the first seed the cache lacks (timed, so the cache then holds it) and
     counts it for each such seed; once every seed is cached, it counts nothing."""
     from sim.experiment.curriculum import is_cached
-    from sim.studies import bench_estimate as bench_module
+    from sim.studies.benchmark import estimate as bench_module
 
     monkeypatch.setattr(
         bench_module, "job_seconds", lambda config, tasks: dict.fromkeys(config.methods, 1.0)
@@ -353,7 +353,7 @@ def test_the_estimate_counts_making_the_data_the_cache_lacks_and_makes_it_once(
 
 
 def test_the_estimate_flag_prints_the_cost_and_writes_nothing(tmp_path, capsys, monkeypatch):
-    from sim.studies import bench_estimate as bench_module
+    from sim.studies.benchmark import estimate as bench_module
 
     monkeypatch.setattr(
         bench_module, "job_seconds", lambda config, tasks: dict.fromkeys(config.methods, 1.0)
@@ -424,7 +424,7 @@ def test_a_gp_sampler_asks_its_own_trials_under_a_key_of_its_own_and_resumes(tmp
         TuneConfig(base, sampler="cma")
     with pytest.raises(InputError, match="--sampler 'cma': expected one of tpe, gp"):
         BenchConfig(base, sampler="cma")  # before any folder is claimed
-    from sim.studies.leaderboard import _sampler_text
+    from sim.studies.benchmark.leaderboard import _sampler_text
 
     assert _sampler_text(gp.to_json()) == "; then asked by a Gaussian process"
     assert _sampler_text(tpe.to_json()) == ""
@@ -515,7 +515,7 @@ def test_every_preset_tunes_on_three_tasks_or_more_outside_what_it_evaluates():
 
 def test_holm_over_the_board_unmarks_a_borderline_method():
     """A p of 0.03 is significant alone; on a board of three tests it is 0.09 after Holm."""
-    from sim.studies.leaderboard import adjust
+    from sim.studies.benchmark.leaderboard import adjust
 
     def cell(p):
         return {"p_value": p, "significant": p is not None and p < 0.05}
@@ -592,7 +592,7 @@ def test_reproductions_tuned_table_is_made_from_the_committed_boards():
 
 
 def test_the_tuned_table_ranks_methods_by_their_mean_rank_and_marks_holm():
-    from sim.studies.leaderboard import boards_table
+    from sim.studies.benchmark.leaderboard import boards_table
 
     def entry(method, rank, mean, significant):
         return {
@@ -712,7 +712,7 @@ def test_the_ranking_transfer_is_one_for_one_ranking_and_falls_as_it_reverses():
 
 def test_a_board_says_how_its_jobs_shared_the_machine():
     """Locally its jobs at a time (one job, singular); on Ray the cluster, not ``--jobs``."""
-    from sim.studies.leaderboard import _parallel_text
+    from sim.studies.benchmark.leaderboard import _parallel_text
 
     assert _parallel_text({"jobs": 1}) == "1 job at a time"
     assert _parallel_text({"jobs": 2, "backend": "local"}) == "2 jobs at a time"

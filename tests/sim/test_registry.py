@@ -14,7 +14,7 @@ from sim.cli import listing
 from sim.generators.base import REGISTRY as GENERATORS
 from sim.generators.checker import GeneratorCheckError, check_generator
 from sim.studies.base import REGISTRY as STUDIES
-from sim.studies.presets import REGISTRY as PRESETS
+from sim.studies.benchmark.presets import REGISTRY as PRESETS
 from viz.loggers import REGISTRY as LOGGERS
 from viz.loggers.checker import LoggerCheckError, check_logger
 
@@ -99,7 +99,7 @@ def test_a_plugin_preset_is_listed_found_by_name_and_cannot_take_a_builtins(
 
     import plugin_parts
 
-    from sim.bench import presets
+    from sim.studies.benchmark import presets
 
     monkeypatch.setattr(plugin_parts, "RADIUS", replace(plugin_parts.PLAZA, name="radius"), False)
     entry_points["c2inet.presets"] = [

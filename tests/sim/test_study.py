@@ -3,6 +3,8 @@ figure, and their variants really differ (a switch that changed nothing would sh
 rows); every registered study takes the shared options and refuses a foreign folder."""
 
 import json
+import subprocess
+import sys
 
 import pytest
 
@@ -86,3 +88,44 @@ def test_the_papers_studies_refuse_another_method(capsys):
     argv = ["fig9", "--quick", "--scenario", "crowd_radius_0.1,0.2", "--methods", "finetune"]
     assert main(argv) == 2
     assert "the paper's studies are of c2inet-online alone" in capsys.readouterr().err
+
+
+def test_listing_the_studies_and_asking_their_options_loads_no_learner():
+    """Discovery imports every study module: each must stay light at import (the learner, the
+    engine and the figures load inside its functions), so ``python -m sim.study`` and any
+    study's ``--help`` (``sim.bench --help`` too) answer without torch."""
+    code = (
+        "import sys\n"
+        "from sim.study import listing, study_parser\n"
+        "from sim.studies.base import discover\n"
+        "listing()\n"
+        "[study_parser(s) for s in discover().values()]\n"
+        "heavy = {'torch', 'scipy.stats', 'matplotlib', 'pandas', 'rerun', 'optuna'}\n"
+        "print(sorted(heavy & set(sys.modules)), len(discover()))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    loaded, count = done.stdout.split("] ")
+    assert loaded == "[" and int(count) >= 9, done.stdout
+
+
+def test_the_benchmark_is_a_study_under_both_commands(capsys):
+    from sim import bench
+
+    options = {a.dest for a in study_parser(discover()["bench"])._actions}
+    assert {"preset", "trials", "race", "storage", "compare", "estimate"} <= options
+    assert main(["bench", "radius", "--scenario", "crowd_radius_0.1,0.2"]) == 2
+    assert capsys.readouterr().err == "error: give a preset or --scenario (one of them)\n"
+    assert bench.main(["radios"]) == 2
+    assert "preset 'radios': unknown; did you mean 'radius'?" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name", ["fidelity", "drift", "shift", "active"])
+def test_each_studys_console_script_takes_a_command_line(capsys, name):
+    """``c2i-drift`` and friends: the study's own command (a bad scenario is one line, exit 2)."""
+    import sim.study
+
+    reference = ["--reference", "orca_radius_0.1,0.2"] if name == "fidelity" else []
+    assert getattr(sim.study, name)(["--scenario", "crowd_nois_0.1,0.2", *reference]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "crowd_nois" in err

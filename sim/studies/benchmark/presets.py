@@ -1,5 +1,5 @@
 """The fair benchmark's protocol sizes and presets: plain data, so ``python -m sim.bench --help``
-lists them without loading the learner (``sim/studies/benchmark.py`` runs them). The presets sit
+lists them without loading the learner (``protocol.py`` runs them). The presets sit
 in the registry kit: another package adds one through the ``c2inet.presets`` entry-point group
 (a :class:`Preset`), and ``--list presets`` shows them all."""
 
@@ -41,7 +41,11 @@ class Preset:
 
 
 def _is_preset(entry: Any) -> str | None:
-    return None if isinstance(entry, Preset) else f"{entry!r} is not a sim.studies.presets.Preset"
+    return (
+        None
+        if isinstance(entry, Preset)
+        else f"{entry!r} is not a sim.studies.benchmark.presets.Preset"
+    )
 
 
 REGISTRY: Registry[Preset] = Registry("preset", __name__, "c2inet.presets", _is_preset)

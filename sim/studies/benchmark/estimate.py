@@ -17,7 +17,7 @@ from sim.experiment.race import race_seed
 from sim.experiment.sweep import layered
 from sim.experiment.trials import TRIAL_TRAIN, validation_inputs
 from sim.experiment.tuning import search_space
-from sim.studies.bench_config import LEAN, BenchConfig, seed_count
+from sim.studies.benchmark.config import LEAN, BenchConfig, seed_count
 
 
 def generation_seconds(configs: list, execution: Execution) -> float:

@@ -42,18 +42,9 @@ from sim.experiment.storage import check_storage
 from sim.experiment.sweep import layered, plan, run_together
 from sim.experiment.trials import trial_results, trial_seconds
 from sim.experiment.tuning import run_tuning
-from sim.studies.bench_config import LEAN, BenchConfig, references, seed_count
-from sim.studies.bench_estimate import estimate_bench, estimate_line
-from sim.studies.leaderboard import leaderboard, leaderboard_markdown
-from sim.studies.presets import (  # noqa: F401  (the protocol, exported with the run)
-    BATCH,
-    PRESETS,
-    REFERENCE_SEEDS,
-    REPLAY_BUDGET,
-    SEEDS,
-    TRIALS,
-    Preset,
-)
+from sim.studies.benchmark.config import LEAN, BenchConfig, references, seed_count
+from sim.studies.benchmark.estimate import estimate_bench, estimate_line
+from sim.studies.benchmark.leaderboard import leaderboard, leaderboard_markdown
 from viz.loggers import prepare_tracking
 from viz.study_figures import leaderboard_figure
 

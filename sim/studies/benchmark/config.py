@@ -19,7 +19,7 @@ from sim.experiment.sweep import layered
 from sim.experiment.trials import TRIAL_TRAIN
 from sim.experiment.tuning import SAMPLERS, TuneConfig
 from sim.scenario import parse_scenario
-from sim.studies.presets import (
+from sim.studies.benchmark.presets import (
     BATCH,
     RACE,
     RACE_SEEDS,

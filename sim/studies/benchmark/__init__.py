@@ -1,0 +1,228 @@
+"""``python -m sim.study bench PRESET``: the fair benchmark, tuning then evaluation then a
+leaderboard (``python -m sim.bench PRESET`` and ``c2i-bench`` run the same study).
+
+Every method gets the same number of Optuna trials over the learning rate and its own knobs,
+scored on validation data of a separate tuning curriculum (never a test split, never a value
+evaluated), then runs with its chosen settings over seeds that each draw their own data, the
+same for every method. The leaderboard ranks the point prediction (K = 1) with 95 % intervals
+and Holm-adjusted paired tests against fine-tuning, beside forgetting, memory and CPU cost; the
+references (joint, joint from scratch) stand apart. Resumable like a run.
+
+This module declares the study (its options; light, so listing the studies loads no learner);
+the package's other modules hold the benchmark: ``presets`` (the protocol's sizes and
+presets), ``config`` (what is tuned and evaluated, its storage key), ``estimate`` (its cost),
+``protocol`` (the run) and ``leaderboard`` (the ranking and its table).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from c2inet.errors import InputError
+from sim.studies.base import Study, register
+from sim.studies.benchmark.presets import (
+    BATCH,
+    PRESETS,
+    RACE,
+    RACE_SEEDS,
+    REFERENCE_SEEDS,
+    REGISTRY,
+    REPLAY_BUDGET,
+    SAMPLER,
+    SEEDS,
+    TRIALS,
+    Preset,
+)
+from viz.cli import bounded_float, bounded_int
+
+__all__ = ["BATCH", "PRESETS", "REFERENCE_SEEDS", "REPLAY_BUDGET", "SEEDS", "TRIALS", "Preset"]
+
+
+def presets() -> str:
+    """One line a preset: its curriculum, its tuning curriculum and what it stands for."""
+    return "\n".join(
+        f"  {name:<9} {p.scenario}  (tuned on {p.tune_scenario}): {p.description}"
+        for name, p in REGISTRY.discover().items()
+    )
+
+
+def add_tuning_options(p) -> None:
+    """The tuning's budget, curriculum, seed and storage."""
+    g = p.add_argument_group("tuning")
+    g.add_argument(
+        "--trials",
+        type=bounded_int(1, 1000),
+        default=TRIALS,
+        help=f"tuning trials per method ({TRIALS})",
+    )
+    g.add_argument(
+        "--prune",
+        action="store_true",
+        help="stop tuning trials worse than the median of the finished ones after a task (from "
+        "the second on); cheaper, but it can discard the best trial (docs/runs.md)",
+    )
+    g.add_argument(
+        "--race",
+        type=bounded_int(0, 1000),
+        default=RACE,
+        metavar="TOP",
+        help=f"score each method's TOP best trials again on --race-seeds more seeds and choose "
+        f"the best mean, not the best single score ({RACE}: off)",
+    )
+    g.add_argument(
+        "--race-seeds",
+        type=bounded_int(1, 100),
+        default=RACE_SEEDS,
+        help=f"the seeds each raced trial gets beyond its own ({RACE_SEEDS})",
+    )
+    g.add_argument(
+        "--sampler",
+        default=SAMPLER,
+        help=f"what asks the trials after the start-up draws: tpe (Optuna's TPE) or gp (its "
+        f"Gaussian process) ({SAMPLER})",
+    )
+    g.add_argument("--tune-scenario", help="the tuning curriculum (default: the preset's)")
+    g.add_argument(
+        "--tuning-seed",
+        type=bounded_int(0, 2**31 - 1),
+        help="the tuning's own root seed (its sampler, trials and data; default --seed): a "
+        "second tuning of one benchmark, evaluated on the same seeds, shows whether it selects",
+    )
+    g.add_argument(
+        "--tuned-from",
+        type=Path,
+        metavar="BOARD",
+        help="no tuning: every method's settings as another benchmark chose them (its folder or "
+        "tuning.json), e.g. to rank the same settings on another curriculum",
+    )
+    g.add_argument(
+        "--storage",
+        help="the trials' Optuna storage: a database URL, or journal:FILE (Optuna's journal, a "
+        "file processes on several machines may share); default: SQLite in --out",
+    )
+
+
+def add_evaluation_options(p) -> None:
+    """What every method keeps, the references' seeds and the decisive pair."""
+    g = p.add_argument_group("evaluation")
+    g.add_argument(
+        "--replay-budget",
+        type=bounded_int(0, 1_000_000),
+        default=REPLAY_BUDGET,
+        metavar="SCENES",
+        help=f"scenes every replay method (coresets, A-GEM, DER++) keeps in all ({REPLAY_BUDGET}; "
+        "0: each its own default)",
+    )
+    g.add_argument(
+        "--reference-seeds",
+        type=bounded_int(1, 1000),
+        default=REFERENCE_SEEDS,
+        help=f"seeds of each reference, joint and joint-scratch ({REFERENCE_SEEDS})",
+    )
+    g.add_argument(
+        "--compare",
+        metavar="A,B",
+        help="the decisive pair: add seeds to these two until the 95 %% interval of their "
+        "paired difference is narrower than --width",
+    )
+    g.add_argument(
+        "--width",
+        type=bounded_float(1e-6, 1.0),
+        default=0.01,
+        metavar="METRES",
+        help="the decisive pair's interval width to reach (0.01 m)",
+    )
+    g.add_argument(
+        "--max-seeds",
+        type=bounded_int(2, 1000),
+        default=30,
+        help="the decisive pair's most seeds (30)",
+    )
+
+
+class Benchmark(Study):
+    """The fair benchmark as a study: the skeleton parses and configures it; the protocol claims
+    its folder (after checking the tuning storage), tunes, evaluates and writes the board."""
+
+    name = "bench"
+    title = "the fair benchmark, tuning then evaluation then a leaderboard"
+    examples = (
+        "radius --methods all --jobs 2",
+        "radius --methods all --jobs 2 --resume --compare c2inet-online,finetune",
+        "--scenario crowd_noise_0.1..0.3 --methods finetune,ewc --trials 4 --seeds 3 --quick "
+        "--out benchmarks_out/smoke",
+    )
+    methods = "all"
+    sweeps = True  # its jobs are the engine's runs (--logger, --no-record); it claims its folder
+    scenario_required = False  # a preset names it
+    report = "leaderboard"
+
+    def add_options(self, p):
+        p.add_argument("preset", nargs="?", help=f"one of {', '.join(PRESETS)} (or --scenario)")
+        p.set_defaults(seeds=SEEDS)
+        add_tuning_options(p)
+        add_evaluation_options(p)
+        p.add_argument(
+            "--estimate",
+            action="store_true",
+            help="time one trial and one job of every method on this machine, print what the "
+            "benchmark would cost, and stop (writes nothing)",
+        )
+        p.epilog += f"\n\npresets:\n{presets()}"
+
+    def preset(self, args) -> Preset | None:
+        """The preset named on the command line (None with ``--scenario``)."""
+        if (args.preset is None) == (args.scenario is None):
+            raise InputError("give a preset or --scenario (one of them)")
+        return None if args.preset is None else REGISTRY.get(args.preset)
+
+    def scenario_of(self, args) -> str:
+        preset = self.preset(args)
+        return preset.scenario if preset else args.scenario
+
+    folder = "bench/PRESET"
+
+    def default_out(self, args) -> Path:
+        return Path("bench") / (args.preset or "custom")
+
+    def run(self, args, config, execution, out, argv):
+        from sim.studies.benchmark.config import BenchConfig
+        from sim.studies.benchmark.estimate import estimate_bench, estimate_table
+        from sim.studies.benchmark.protocol import run_bench
+
+        preset = self.preset(args)
+        bench = BenchConfig(
+            config,
+            args.preset or "custom",
+            args.tune_scenario or (preset.tune_scenario if preset else None),
+            args.trials,
+            args.storage,
+            args.replay_budget or None,
+            args.prune,
+            args.reference_seeds,
+            tuple(args.compare.split(",")) if args.compare else (),
+            args.width,
+            args.max_seeds,
+            preset.data if preset else {},
+            args.tuning_seed,
+            args.race,
+            args.race_seeds,
+            args.sampler,
+            args.tuned_from,
+        )
+        if args.estimate:
+            print(estimate_table(bench, estimate_bench(bench, execution)))
+            return None
+        return run_bench(bench, out, execution, args.resume, args.overwrite, argv)
+
+    def markdown(self, report):
+        from sim.studies.benchmark.leaderboard import leaderboard_markdown
+
+        return leaderboard_markdown(report)
+
+    def write(self, report, out) -> str:
+        """The protocol wrote the board (``leaderboard.*`` and ``results.parquet``) itself."""
+        return self.report
+
+
+register(Benchmark())
