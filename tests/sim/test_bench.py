@@ -3,6 +3,7 @@ tasks, and one command that tunes, evaluates, ranks and resumes."""
 
 import json
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -734,3 +735,20 @@ def test_a_board_of_a_family_from_a_scenarios_dir_is_sized_without_parsing_it_ba
         scenarios_dir=(folder,),
     )
     assert BenchConfig(base, trials=2).sizes() == "reduced"
+
+
+def test_the_tuning_noise_measure_reads_a_planted_race():
+    """``benchmarks/tuning_noise.py``: two candidates that move together from draw to draw have
+    no paired noise; one better on its own draw than on the others carries a winner's curse."""
+    import importlib.util
+
+    path = Path(__file__).parents[2] / "benchmarks" / "tuning_noise.py"
+    spec = importlib.util.spec_from_file_location("tuning_noise", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    together = np.array([[0.10, 0.20, 0.30], [0.15, 0.25, 0.35]])
+    n = module.noise([together])
+    assert n["paired"] == pytest.approx(0.0) and n["one_draw"] == pytest.approx(0.1)
+    assert n["curse"] == pytest.approx(0.15)  # each scored 0.15 better on its own draw
+    cursed = np.array([[0.10, 0.20, 0.20], [0.20, 0.10, 0.30]])
+    assert module.noise([cursed])["paired"] > 0.1
