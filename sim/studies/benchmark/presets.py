@@ -92,7 +92,7 @@ for preset in (
         "highway_density_0.75..1.75:0.5",
         "highway-env traffic density; tuned on densities between its own",
         # 30 s episodes, the family's 16: 64.6 min on an idle machine before the decoder's rollout
-        # (6,672 CPU s of jobs); 12 fitted (49.7 min) but decided almost nothing
+        # (6,672 CPU s of jobs), 55.2 min since (5,936); 12 took 49.7 min, deciding nothing
         {"splits.train": 16},
     ),
 ):
