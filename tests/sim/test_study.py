@@ -100,7 +100,7 @@ def test_listing_the_studies_and_asking_their_options_loads_no_learner():
         "from sim.studies.base import discover\n"
         "listing()\n"
         "[study_parser(s) for s in discover().values()]\n"
-        "heavy = {'torch', 'scipy.stats', 'matplotlib', 'pandas', 'rerun', 'optuna'}\n"
+        "heavy = {'torch', 'scipy.stats', 'matplotlib', 'pandas', 'pyarrow', 'rerun', 'optuna'}\n"
         "print(sorted(heavy & set(sys.modules)), len(discover()))\n"
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
