@@ -65,20 +65,30 @@ def noise(objectives: list[np.ndarray]) -> dict[str, float]:
     }
 
 
+def refuse(why: str) -> None:
+    """Bad input: one line, exit code 2."""
+    print(f"error: {why}", file=sys.stderr)
+    sys.exit(2)
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("tunings", nargs="*", type=Path, help=f"default: {' '.join(RACED)}")
     p.add_argument("--precision", type=float, default=0.005, help="metres (0.005)")
     args = p.parse_args()
     paths = args.tunings or [Path(r) for r in RACED]
-    missing = [str(path) for path in paths if not path.exists()]
-    if missing or not 0 < args.precision < 1:
-        print(f"error: {missing[0] if missing else '--precision'}: not found", file=sys.stderr)
-        sys.exit(2)
+    if not 0 < args.precision < 1:
+        refuse(f"--precision {args.precision:g}: expected metres in (0, 1)")
     tables: dict[str, list[np.ndarray]] = {}
     for path in paths:
-        for method, table in raced_objectives(path).items():
+        try:
+            raced = raced_objectives(path)
+        except (OSError, ValueError, KeyError, TypeError, AttributeError) as error:
+            refuse(f"{path}: not a raced tuning's tuning.json ({error})")
+        for method, table in raced.items():
             tables.setdefault(method, []).append(table)
+    if not tables:
+        refuse(f"{', '.join(map(str, paths))}: no raced trials (run with --race TOP)")
     print(f"{len(paths)} raced tunings; precision {args.precision} m")
     print(f"{'method':<16}{'candidates':>11}{'one draw':>10}{'paired':>9}{'curse':>9}{'seeds':>7}")
     for method, objectives in tables.items():

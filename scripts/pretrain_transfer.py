@@ -26,6 +26,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from c2inet.files import write_text_atomic
+
 CALIBRATION = Path("docs/calibration")
 SCENES = ("eth", "hotel", "univ", "zara1", "zara2")
 ARMS = {  # name -> scenario, from the fitted crowd's scenario and the scene's name
@@ -106,9 +108,9 @@ def main() -> None:
     args = p.parse_args()
     rows = {s: scene_row(s, args.runs, args.seeds, args.jobs) for s in args.scenes.split(",")}
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "pretrain.json").write_text(json.dumps(rows, indent=1) + "\n")
+    write_text_atomic(args.out / "pretrain.json", json.dumps(rows, indent=1) + "\n")
     text = markdown(rows, args.seeds)
-    (args.out / "pretrain.md").write_text(text)
+    write_text_atomic(args.out / "pretrain.md", text)
     print(text)
 
 

@@ -177,7 +177,7 @@ def registries() -> dict[str, Any]:
     from c2inet.backbones.base import REGISTRY as backbones
     from c2inet.methods.base import REGISTRY as methods
     from sim.generators.base import REGISTRY as generators
-    from sim.studies.base import REGISTRY as studies  # the studies import the engine: late
+    from sim.studies.base import REGISTRY as studies
     from sim.studies.benchmark.presets import REGISTRY as presets
     from viz.loggers import REGISTRY as loggers
 

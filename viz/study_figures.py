@@ -179,11 +179,17 @@ def study_figure(summary: dict, path: Path) -> None:
         for metric, style in (("avg_seen_ade", "-o"), ("avg_seen_fde", "--s")):
             values = [m[metric][-1] for m in members]
             errors = [m[f"{metric}_std"][-1] for m in members]
-            label, fmt = metric[-3:].upper(), style if by_order else style[-1]
-            if by_order:
-                ax.errorbar(at, values, errors, fmt=fmt, capsize=3, label=label, color=colour)
-            else:
-                ax.errorbar(values, at, xerr=errors, fmt=fmt, capsize=3, label=label, color=colour)
+            x, y, spread = (at, values, "yerr") if by_order else (values, at, "xerr")
+            fmt = style if by_order else style[-1]  # variants: markers, no line between rows
+            ax.errorbar(
+                x,
+                y,
+                **{spread: errors},
+                fmt=fmt,
+                capsize=3,
+                label=metric[-3:].upper(),
+                color=colour,
+            )
         if by_order:
             ax.set_xticks(at, names, rotation=20, ha="right", fontsize=8)
             ax.set_ylabel("final average over tasks (m)")
