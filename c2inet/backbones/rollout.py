@@ -5,7 +5,7 @@ the calls around it and in passes over memory: per step an embedding, two gate p
 activations and the output layer, each an autograd node, and twice as many again backwards.
 Here one product per step makes the gates from ``[h, x, 1]`` (the embedding and both biases
 folded in: the input is 2-d, so ``W_ih (W_e x + b_e)`` is ``(W_ih W_e) x`` plus a constant), the
-gates are ordered input, forget, output, cell so two calls activate them, and the backward walks
+gates keep PyTorch's order (input, forget, cell, output), and the backward walks
 the steps in reverse with two products and one fused pass per step (:func:`_cell_backward`,
 writing each step's gate gradients over its activations), the weights' gradients taken after
 the loop as two products over all steps at once; its buffers are reused, since fresh ones fault
@@ -22,54 +22,47 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 import torch
-from numba import njit
 from torch.autograd.function import once_differentiable
 
-_ORDER = (0, 1, 3, 2)  # PyTorch's gate blocks (input, forget, cell, output) as i, f, o, g
+from c2inet.backbones import rollout_kernels as kernels
+from c2inet.backbones.rollout_kernels import compiled
 
 
 def rollout_weights(embed: torch.nn.Linear, cell: torch.nn.LSTMCell) -> torch.Tensor:
-    """The gates' weight ``[W_hh | W_ih W_e | b]`` (4H, H + in + 1), blocks ordered i, f, o, g,
-    as differentiable products of the modules' own parameters (their state dicts unchanged)."""
+    """The gates' weight ``[W_hh | W_ih W_e | b]`` (4H, H + in + 1), blocks in PyTorch's order
+    (i, f, g, o), as differentiable products of the modules' own parameters (their state dicts
+    unchanged)."""
     bias = cell.bias_ih + cell.bias_hh + cell.weight_ih @ embed.bias
-    weight = torch.cat([cell.weight_hh, cell.weight_ih @ embed.weight, bias[:, None]], 1)
-    return torch.cat([weight.chunk(4)[k] for k in _ORDER])
-
-
-@njit(cache=True, fastmath=True, nogil=True, error_model="numpy")
-def _cell_backward_cpu(dh, dc, acts, tanhs, c_prev, d_gates):  # pragma: no cover (compiled)
-    one = np.float32(1.0)
-    hidden = dh.shape[1]
-    for r in range(dh.shape[0]):
-        a, d, dhr, dcr, tr, cr = acts[r], d_gates[r], dh[r], dc[r], tanhs[r], c_prev[r]
-        for j in range(hidden):
-            i, f, o, g = a[j], a[hidden + j], a[2 * hidden + j], a[3 * hidden + j]
-            t, d_h = tr[j], dhr[j]
-            d_c = dcr[j] + d_h * o * (one - t * t)
-            d[j] = d_c * g * i * (one - i)
-            d[hidden + j] = d_c * cr[j] * f * (one - f)
-            d[2 * hidden + j] = d_h * t * o * (one - o)
-            d[3 * hidden + j] = d_c * i * (one - g * g)
-            dcr[j] = d_c * f
+    return torch.cat([cell.weight_hh, cell.weight_ih @ embed.weight, bias[:, None]], 1)
 
 
 def _cell_backward(dh, dc, acts, tanhs, c_prev, d_gates) -> None:
-    """One step back through the cell: the gates' gradient (R, 4H) into ``d_gates`` (which may
-    be ``acts`` itself: each element is read before it is written) and the cell state's,
-    carried one step back, into ``dc``, from the hidden state's ``dh``. One pass over memory
-    on a CPU in float32 (compiled), tensor operations elsewhere."""
-    if dh.device.type == "cpu" and dh.dtype == torch.float32:
-        arrays = (t.numpy() for t in (dh, dc, acts, tanhs, c_prev, d_gates))
-        _cell_backward_cpu(*arrays)
-        return
-    i, f, o, g = acts.split(dh.shape[1], 1)
+    """One step back through the cell in tensor operations: the gates' gradient (R, 4H) into
+    ``d_gates`` (which may be ``acts`` itself) and the cell state's, carried one step back,
+    into ``dc``, from the hidden state's ``dh``."""
+    i, f, g, o = acts.split(dh.shape[1], 1)
     dc.addcmul_(dh * o, 1 - tanhs * tanhs)
-    gates = [dc * g * i * (1 - i), dc * c_prev * f * (1 - f), dh * tanhs * o * (1 - o)]
-    gates.append(dc * i * (1 - g * g))
+    gates = [dc * g * i * (1 - i), dc * c_prev * f * (1 - f), dc * i * (1 - g * g)]
+    gates.append(dh * tanhs * o * (1 - o))
     dc.mul_(f)
     d_gates.copy_(torch.cat(gates, 1))  # last: d_gates may be acts itself
+
+
+def _forward_step(hx, cs, acts, tanhs, out, w_out_t, b_out, now, then, residual) -> None:
+    """One step forward in tensor operations from the gates' pre-activations ``acts`` (R, 4H),
+    as :func:`~c2inet.backbones.rollout_kernels.forward_step` does compiled."""
+    hidden = cs.shape[2]
+    i, f, g, o = acts.split(hidden, 1)
+    torch.sigmoid_(acts[:, : 2 * hidden])
+    g.tanh_()
+    o.sigmoid_()
+    c = torch.mul(f, cs[now], out=cs[then]).addcmul_(i, g)
+    h_new = torch.mul(o, torch.tanh(c, out=tanhs), out=hx[then, :, :hidden])
+    x_new = torch.addmm(b_out, h_new, w_out_t, out=out)
+    if residual:
+        x_new += hx[now, :, hidden:-1]
+    hx[then, :, hidden:-1] = x_new
 
 
 class _Buffers:
@@ -123,18 +116,18 @@ def _run(h, x, weight, w_out, b_out, steps: int, residual: bool, keep: bool):
     outs = h.new_empty(steps, rows, width)
     hx[0, :, :hidden], hx[0, :, hidden:-1] = h, x
     weight_t, w_out_t = weight.t(), w_out.t()
+    fused = compiled(h)
+    if fused:
+        arrays = [b.numpy() for b in (hx, cs, acts, tanhs, outs)]
+        w_out_np, b_out_np = w_out.detach().numpy(), b_out.detach().numpy()
     for t in range(steps):
         now, then = (t, t + 1) if keep else (t % 2, (t + 1) % 2)
-        a = torch.mm(hx[now], weight_t, out=acts[t if keep else 0])
-        a[:, : 3 * hidden].sigmoid_()
-        a[:, 3 * hidden :].tanh_()
-        i, f, o, g = a.split(hidden, 1)
-        c = torch.mul(f, cs[now], out=cs[then]).addcmul_(i, g)
-        h_new = torch.mul(o, torch.tanh(c, out=tanhs[t if keep else 0]), out=hx[then, :, :hidden])
-        x_new = torch.addmm(b_out, h_new, w_out_t, out=outs[t])
-        if residual:
-            x_new += hx[now, :, hidden:-1]
-        hx[then, :, hidden:-1] = x_new
+        at = t if keep else 0
+        torch.mm(hx[now], weight_t, out=acts[at])
+        if fused:
+            kernels.forward_step(*arrays, w_out_np, b_out_np, now, then, at, t, residual)
+        else:
+            _forward_step(hx, cs, acts[at], tanhs[at], outs[t], w_out_t, b_out, now, then, residual)
     return outs, (hx, cs, acts, tanhs)
 
 
@@ -149,29 +142,57 @@ class _Rollout(torch.autograd.Function):
     @staticmethod
     @once_differentiable
     def backward(ctx, d_outs):
-        weight, w_out, hx, cs, acts, tanhs = ctx.saved_tensors
-        steps, rows, width = d_outs.shape
-        hidden = cs.shape[-1]
+        weight, w_out, *kept = ctx.saved_tensors
         if ctx.spent:
             raise RuntimeError("the decoder's rollout runs backward once (its buffers are reused)")
         ctx.spent = True
-        d_gates = acts  # each step's gradient over its activations, read just before
-        d_xs = _BUFFERS.take(d_outs, *d_outs.shape)  # the gradient at every output, all paths
-        dh = hx.new_zeros(rows, hidden)
-        dc = hx.new_zeros(rows, hidden)
-        carry = hx.new_zeros(rows, width)  # the gradient reaching x_t through the later steps
-        to_h = weight[:, :hidden].contiguous()  # the gates' weights on h_{t-1} and on x_{t-1}
-        to_x = weight[:, hidden:-1].contiguous()
+        live = (d_outs != 0).any(2).any(0)  # rows some loss reached
+        if bool(live.all()):
+            grads = _backward(weight, w_out, d_outs, *kept, ctx.residual)
+        else:  # the variety loss reaches one sample of every K: the rest need no walk back
+            index = live.nonzero()[:, 0]
+            rows = [b.index_select(1, index) for b in (d_outs, *kept)]
+            dh, carry, *weights = _backward(weight, w_out, *rows, ctx.residual)
+            grads = (_scatter(dh, index, live), _scatter(carry, index, live), *weights)
+        _BUFFERS.give(*kept)
+        return *grads, None, None
+
+
+def _scatter(rows: torch.Tensor, index: torch.Tensor, live: torch.Tensor) -> torch.Tensor:
+    full = rows.new_zeros(len(live), rows.shape[1])
+    return full.index_copy_(0, index, rows)
+
+
+def _backward(weight, w_out, d_outs, hx, cs, acts, tanhs, residual: bool):
+    """The rollout's gradients from its outputs' ``d_outs`` (steps, R, out), walking its kept
+    buffers back (``acts`` becomes the gates' gradient): the initial hidden state's and input's,
+    then the gate weights', the output weight's and bias'."""
+    steps, rows, width = d_outs.shape
+    hidden = cs.shape[-1]
+    d_gates = acts  # each step's gradient over its activations, read just before
+    d_xs = _BUFFERS.take(d_outs, *d_outs.shape)  # the gradient at every output, all paths
+    dh = hx.new_zeros(rows, hidden)
+    dc = hx.new_zeros(rows, hidden)
+    carry = hx.new_zeros(rows, width)  # the gradient reaching x_t through the later steps
+    to_h = weight[:, :hidden].contiguous()  # the gates' weights on h_{t-1} and on x_{t-1}
+    to_x = weight[:, hidden:-1].contiguous()
+    if compiled(d_outs):
+        arrays = [a.numpy() for a in (d_outs.contiguous(), d_xs, carry, dh, dc, acts, tanhs, cs)]
+        w_out_np, to_x_np = w_out.detach().numpy(), to_x.t().contiguous().numpy()
+        for t in reversed(range(steps)):
+            kernels.backward_step(*arrays, w_out_np, to_x_np, t, residual)
+            torch.mm(d_gates[t], to_h, out=dh)
+    else:
         for t in reversed(range(steps)):
             dx = torch.add(d_outs[t], carry, out=d_xs[t])
             dh.addmm_(dx, w_out)
             _cell_backward(dh, dc, acts[t], tanhs[t], cs[t], d_gates[t])
             dh = d_gates[t] @ to_h
-            carry = torch.addmm(dx, d_gates[t], to_x) if ctx.residual else d_gates[t] @ to_x
-        d_weight = (hx[:steps].flatten(0, 1).t() @ d_gates.flatten(0, 1)).t()
-        d_out = (hx[1:].flatten(0, 1).t() @ d_xs.flatten(0, 1)).t()  # (out, H + out + 1)
-        _BUFFERS.give(hx, cs, acts, tanhs, d_xs)
-        return dh, carry, d_weight, d_out[:, :hidden], d_out[:, -1], None, None
+            carry = torch.addmm(dx, d_gates[t], to_x) if residual else d_gates[t] @ to_x
+    d_weight = (hx[:steps].flatten(0, 1).t() @ d_gates.flatten(0, 1)).t()
+    d_out = (hx[1:].flatten(0, 1).t() @ d_xs.flatten(0, 1)).t()  # (out, H + out + 1)
+    _BUFFERS.give(d_xs)
+    return dh, carry, d_weight, d_out[:, :hidden], d_out[:, -1]
 
 
 def lstm_rollout(

@@ -11,6 +11,7 @@ from torch import nn
 
 from c2inet.backbones.base import register
 from c2inet.backbones.rollout import lstm_rollout, rollout_weights
+from c2inet.backbones.sequence import run_lstm
 from c2inet.batch import Batch
 
 
@@ -40,10 +41,17 @@ class GraphAttention(nn.Module):
 
 
 class STGATEncoder(nn.Module):
-    """Encodes observed displacements into a 64-d vector per agent (32 trajectory + 32 graph)."""
+    """Encodes observed displacements into a 64-d vector per agent (32 trajectory + 32 graph).
 
-    def __init__(self, traj_hidden=32, graph_hidden=32, gat_hidden=16, gat_out=32, heads=4):
+    ``compiled``: its LSTMs run through :func:`~c2inet.backbones.sequence.run_lstm` (compiled
+    steps on the CPU in float32), else as the modules themselves (oneDNN); the same function.
+    """
+
+    def __init__(
+        self, traj_hidden=32, graph_hidden=32, gat_hidden=16, gat_out=32, heads=4, compiled=True
+    ):
         super().__init__()
+        self.compiled = compiled
         self.traj_lstm = nn.LSTM(2, traj_hidden)
         self.gat1 = GraphAttention(traj_hidden, gat_hidden, heads, concat=True)
         self.gat2 = GraphAttention(gat_hidden * heads, gat_out, 1, concat=False)
@@ -51,11 +59,14 @@ class STGATEncoder(nn.Module):
         self.out_dim = traj_hidden + graph_hidden
 
     def forward(self, obs_rel: torch.Tensor, batch: Batch) -> torch.Tensor:
-        traj, _ = self.traj_lstm(obs_rel)  # (T, N, 32)
+        traj = self._lstm(self.traj_lstm, obs_rel)  # (T, N, 32)
         padded, mask = batch.pad(traj)
         social = self.gat2(nn.functional.elu(self.gat1(padded, mask)), mask)
-        graph, _ = self.graph_lstm(batch.unpad(social))
+        graph = self._lstm(self.graph_lstm, batch.unpad(social))
         return torch.cat([traj[-1], graph[-1]], dim=-1)
+
+    def _lstm(self, lstm: nn.LSTM, x: torch.Tensor) -> torch.Tensor:
+        return run_lstm(lstm, x) if self.compiled else lstm(x)[0]
 
 
 class Decoder(nn.Module):
@@ -117,7 +128,7 @@ class STGAT(nn.Module):
 
     def __init__(self, cond_dim: int, pred_len: int = 12, residual: bool = False):
         super().__init__()
-        self.encoder = STGATEncoder()
+        self.encoder = STGATEncoder(compiled=self.decoder_kernel == "rollout")
         self.decoder = Decoder(
             cond_dim, pred_len=pred_len, residual=residual, kernel=self.decoder_kernel
         )
@@ -132,8 +143,9 @@ class STGAT(nn.Module):
 
 @register("stgat-cell")
 class STGATCell(STGAT):
-    """STGAT with its decoder stepped through :class:`torch.nn.LSTMCell`, as before the rollout:
-    the same parameters (checkpoints load either way), 1.1 to 1.3x slower to train; the
-    reference the rollout is tested against."""
+    """STGAT in tensor operations, as before the rollout and the compiled encoder: its decoder
+    stepped through :class:`torch.nn.LSTMCell`, its encoder's LSTMs PyTorch's own. The same
+    parameters (checkpoints load either way), slower to train; the reference the compiled
+    backbone is tested and timed against."""
 
     decoder_kernel = "cell"

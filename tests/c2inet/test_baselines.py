@@ -236,7 +236,9 @@ def test_derpp_one_pass_step_is_the_step_of_separate_passes(replay_loss):
     torch.testing.assert_close(joined.output, step.output, rtol=1e-5, atol=1e-6)
     grads = torch.autograd.grad(joined.loss, model.parameters())
     for a, b in zip(grads, torch.autograd.grad(apart, model.parameters()), strict=True):
-        torch.testing.assert_close(a, b, rtol=1e-4, atol=1e-5)
+        # float32 sums over differently shaped products (the rollout walks back the rows a
+        # loss reached): within rounding of the gradient's scale, not of each element's
+        assert (a - b).abs().max() <= 1e-4 * b.abs().max() + 1e-6
 
 
 def test_derpp_replays_its_batch_through_one_encoder_call_a_step(monkeypatch):

@@ -1,11 +1,13 @@
 """The decoder's rollout (one autograd node, a hand-written backward) is the LSTM cell it
 replaces: the same outputs and gradients in float64, within float32 rounding through the compiled
-backward, with or without gradients, and its reused buffers never shared by two live rollouts."""
+steps, with or without gradients, walking back only the rows a loss reached, and its reused
+buffers never shared by two live rollouts."""
 
 import pytest
 import torch
 
-from c2inet.backbones import BACKBONES
+from c2inet.backbones import BACKBONES, rollout
+from c2inet.backbones import rollout_kernels as kernels
 from c2inet.backbones.rollout import _BUFFERS
 from c2inet.backbones.stgat import Decoder
 
@@ -80,3 +82,39 @@ def test_a_second_backward_through_one_rollout_is_refused():
     out.backward(retain_graph=True)
     with pytest.raises(RuntimeError, match="backward once"):
         out.backward()
+
+
+def test_the_variety_losss_unreached_samples_are_not_walked_back(monkeypatch):
+    """Best of K reaches one sample a scene: the backward walks only the rows a loss reached
+    (fewer rows, checked), and the gradients are still the cell's."""
+    decoder, cond, last_rel = decoders(True)
+    walked = []
+    original = rollout._backward
+    monkeypatch.setattr(
+        rollout, "_backward", lambda *a: walked.append(a[2].shape[1]) or original(*a)
+    )
+
+    def best_of_k(kernel):
+        decoder.kernel = kernel
+        out = decoder(cond, last_rel)  # (12, S=3, N=7, 2)
+        per_sample = (out**2).sum(dim=(0, 3))  # (S, N)
+        loss = per_sample.min(0).values.sum()  # one sample per agent
+        return torch.autograd.grad(loss, [cond, last_rel, *decoder.parameters()])
+
+    grads, ref_grads = best_of_k("rollout"), best_of_k("cell")
+    assert walked == [7]  # of 21 rows
+    for grad, expected in zip(grads, ref_grads, strict=True):
+        torch.testing.assert_close(grad, expected, rtol=1e-10, atol=1e-12)
+    assert (grads[0].abs().sum(-1) == 0).sum() == 14  # the samples not chosen: exactly zero
+
+
+@pytest.mark.parametrize("residual", [True, False])
+def test_the_compiled_steps_are_the_tensor_steps_within_float32_rounding(residual, monkeypatch):
+    decoder, cond, last_rel = decoders(residual, torch.float32)
+    out, grads = outputs_and_gradients(decoder, "rollout", cond, last_rel)
+    monkeypatch.setattr(kernels, "COMPILED", False)
+    ref, ref_grads = outputs_and_gradients(decoder, "rollout", cond, last_rel)
+    assert not torch.equal(out, ref)  # the two paths really differ (rounding)
+    torch.testing.assert_close(out, ref, rtol=1e-5, atol=1e-6)
+    for grad, expected in zip(grads, ref_grads, strict=True):
+        assert (grad - expected).abs().max() <= 1e-5 * expected.abs().max()
