@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import torch
@@ -13,9 +14,13 @@ from c2inet.data import Windows
 MIN_SCALE = 0.05  # m per frame
 
 
-@dataclass
+@dataclass(frozen=True)
 class Batch:
-    """Scenes as tensors. Model inputs are built from ``obs`` alone (no future leaks in)."""
+    """Scenes as tensors. Model inputs are built from ``obs`` alone (no future leaks in).
+
+    Frozen, so what is derived from its tensors (displacements, scales) is computed once and
+    kept: a training step asks for them a dozen times.
+    """
 
     obs: torch.Tensor  # (8, N, 2) observed positions, metres
     fut: torch.Tensor  # (12, N, 2) future positions (targets only)
@@ -28,12 +33,12 @@ class Batch:
     def num_scenes(self) -> int:
         return len(self.scene_start) - 1
 
-    @property
+    @cached_property
     def obs_rel(self) -> torch.Tensor:
         """Observed displacements by backward differences; the first step is zero."""
         return torch.cat([torch.zeros_like(self.obs[:1]), self.obs[1:] - self.obs[:-1]])
 
-    @property
+    @cached_property
     def scale(self) -> torch.Tensor:
         """(N, 1) motion scale of each agent's scene: its mean observed step length, metres.
 
@@ -42,12 +47,12 @@ class Batch:
         step = self.obs_rel[1:].norm(dim=-1).mean(0)  # (N,)
         return self.per_scene_mean(step).clamp_min(MIN_SCALE)[self.scene_of, None]
 
-    @property
+    @cached_property
     def last_rel(self) -> torch.Tensor:
         """(N, 2) each agent's last observed displacement over its scale: where decoding starts."""
         return self.obs_rel[-1] / self.scale
 
-    @property
+    @cached_property
     def agent_counts(self) -> torch.Tensor:
         return self.scene_start[1:] - self.scene_start[:-1]
 
@@ -62,7 +67,7 @@ class Batch:
         sums = features.new_zeros((self.num_scenes, features.shape[-1]))
         return sums.index_add(0, self.scene_of, features) / self.agent_counts[:, None]
 
-    @property
+    @cached_property
     def fut_rel(self) -> torch.Tensor:
         """Future displacements, starting from the last observed position."""
         previous = torch.cat([self.obs[-1:], self.fut[:-1]])

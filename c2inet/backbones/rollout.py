@@ -4,17 +4,18 @@ The decoder's twelve steps were about 70 % of a training step, spent less in ari
 the calls around it and in passes over memory: per step an embedding, two gate products, five
 activations and the output layer, each an autograd node, and twice as many again backwards.
 Here one product per step makes the gates from ``[h, x, 1]`` (the embedding and both biases
-folded in: the input is 2-d, so ``W_ih (W_e x + b_e)`` is ``(W_ih W_e) x`` plus a constant), the
-gates keep PyTorch's order (input, forget, cell, output), and the backward walks
-the steps in reverse with two products and one fused pass per step (:func:`_cell_backward`,
-writing each step's gate gradients over its activations), the weights' gradients taken after
-the loop as two products over all steps at once; its buffers are reused, since fresh ones fault
-in page by page. Training reaches the same function of the same parameters as
-:class:`torch.nn.LSTMCell`, summed in another order (rounding): ``tests/c2inet/test_rollout.py``
-holds it to the cell in float64. Measured (``benchmarks/train_throughput.py``, one thread, batch
-16): fine-tuning trains 1.2 to 1.3 times the scenes per second; what stays is the products'
-arithmetic and passes over memory, not calls. Tried and left: ``torch.compile`` of the decoder
-(1.12x at fixed shapes, 15 to 21 s to compile) and bf16 products on this CPU's AMX
+folded in: the input is 2-d, so ``W_ih (W_e x + b_e)`` is ``(W_ih W_e) x`` plus a constant), and
+on the CPU in float32 everything else of a step is one compiled pass
+(:mod:`~c2inet.backbones.rollout_kernels`; tensor operations elsewhere). The backward walks the
+steps in reverse with one product and one compiled pass each, writing each step's gate
+gradients over its activations, and only over the rows some loss reached: the variety loss
+takes one sample of K per scene, so the other K - 1 are left out of the walk (their gradient is
+exactly zero). The weights' gradients are two products over all steps at once; the buffers are
+reused, since fresh ones fault in page by page. Training reaches the same function of the same
+parameters as :class:`torch.nn.LSTMCell`, summed in another order (rounding):
+``tests/c2inet/test_rollout.py`` holds it to the cell in float64, and the compiled steps to the
+tensor steps in float32. Measured in ``docs/learner.md``; tried and left: ``torch.compile`` of
+the decoder (1.12x at fixed shapes, 15 to 21 s to compile) and bf16 products on this CPU's AMX
 (``torch.set_float32_matmul_precision("medium")``: no faster, the conversions eat it).
 """
 
@@ -71,7 +72,7 @@ class _Buffers:
     anew each time), which cost about 15 % of a decoder step. Best fit first; a new buffer has
     room for a batch a quarter larger; at most ``keep`` are kept, none over ``largest`` bytes."""
 
-    def __init__(self, keep: int = 8, largest: int = 64 << 20):
+    def __init__(self, keep: int = 12, largest: int = 64 << 20):
         self.free: list[torch.Tensor] = []
         self.keep, self.largest = keep, largest
 
@@ -151,9 +152,13 @@ class _Rollout(torch.autograd.Function):
             grads = _backward(weight, w_out, d_outs, *kept, ctx.residual)
         else:  # the variety loss reaches one sample of every K: the rest need no walk back
             index = live.nonzero()[:, 0]
-            rows = [b.index_select(1, index) for b in (d_outs, *kept)]
-            dh, carry, *weights = _backward(weight, w_out, *rows, ctx.residual)
+            rows = [_BUFFERS.take(b, len(b), len(index), b.shape[2]) for b in kept]
+            for buffer, taken in zip(kept, rows, strict=True):
+                torch.index_select(buffer, 1, index, out=taken)
+            d_rows = d_outs.index_select(1, index)
+            dh, carry, *weights = _backward(weight, w_out, d_rows, *rows, ctx.residual)
             grads = (_scatter(dh, index, live), _scatter(carry, index, live), *weights)
+            _BUFFERS.give(*rows)
         _BUFFERS.give(*kept)
         return *grads, None, None
 

@@ -164,3 +164,12 @@ def sequence_back(d_hs, dh, dc, acts, tanhs, cs, t):  # pragma: no cover (compil
         for j in range(dh.shape[1]):
             dhr[j] += d_hs[t, r, j]
         _cell_back(acts[t, r], dhr, dc[r], tanhs[t, r], cs[t, r])
+
+
+@njit(**_COMPILE)
+def take_rows(source, index, out):  # pragma: no cover (compiled)
+    """``out[t, i] = source[t, index[i]]`` for every step t: the rows kept of (T, R, W) buffers
+    (``Tensor.index_select(1, index)``, without its cost at this size)."""
+    for t in range(source.shape[0]):
+        for i in range(len(index)):
+            out[t, i] = source[t, index[i]]

@@ -17,6 +17,7 @@ from torch import nn
 from torch.autograd.function import once_differentiable
 
 from c2inet.backbones import rollout_kernels as kernels
+from c2inet.backbones.rollout import _BUFFERS
 
 
 def lstm_weights(lstm: nn.LSTM) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -24,22 +25,32 @@ def lstm_weights(lstm: nn.LSTM) -> tuple[torch.Tensor, torch.Tensor, torch.Tenso
     return lstm.weight_ih_l0, lstm.weight_hh_l0, lstm.bias_ih_l0 + lstm.bias_hh_l0
 
 
+def _forward(x, w_ih, w_hh, bias):
+    """The forward loop: every step's hidden state (T + 1, R, H), the first zero, and what the
+    backward needs: cell states (T + 1, R, H), activations (T, R, 4H) and the cells' tanh (T, R,
+    H), the last three from the reused buffers (fresh ones fault in page by page)."""
+    steps, rows, _ = x.shape
+    hidden = w_hh.shape[1]
+    acts = _BUFFERS.take(x, steps, rows, 4 * hidden)
+    torch.addmm(bias, x.flatten(0, 1), w_ih.t(), out=acts.view(steps * rows, 4 * hidden))
+    hs = x.new_empty(steps + 1, rows, hidden)
+    cs = _BUFFERS.take(x, steps + 1, rows, hidden)
+    hs[0], cs[0] = 0, 0
+    tanhs = _BUFFERS.take(x, steps, rows, hidden)
+    arrays = [a.numpy() for a in (hs, cs, acts, tanhs)]
+    act_steps, h_steps, w_hh_t = acts.unbind(), hs.unbind(), w_hh.t()
+    for t in range(steps):
+        if t:  # h_0 is zero
+            act_steps[t].addmm_(h_steps[t], w_hh_t)
+        kernels.sequence_step(*arrays, t)
+    return hs, (cs, acts, tanhs)
+
+
 class _Sequence(torch.autograd.Function):
     @staticmethod
     def forward(ctx, x, w_ih, w_hh, bias):
-        steps, rows, _ = x.shape
-        hidden = w_hh.shape[1]
-        acts = torch.addmm(bias, x.flatten(0, 1), w_ih.t()).view(steps, rows, 4 * hidden)
-        hs = x.new_zeros(steps + 1, rows, hidden)
-        cs = x.new_zeros(steps + 1, rows, hidden)
-        tanhs = x.new_empty(steps, rows, hidden)
-        arrays = [a.numpy() for a in (hs, cs, acts, tanhs)]
-        w_hh_t = w_hh.t()
-        for t in range(steps):
-            if t:  # h_0 is zero
-                acts[t].addmm_(hs[t], w_hh_t)
-            kernels.sequence_step(*arrays, t)
-        ctx.save_for_backward(x, w_ih, w_hh, hs, cs, acts, tanhs)
+        hs, kept = _forward(x, w_ih, w_hh, bias)
+        ctx.save_for_backward(x, w_ih, w_hh, hs, *kept)
         ctx.spent = False
         return hs[1:]
 
@@ -48,21 +59,24 @@ class _Sequence(torch.autograd.Function):
     def backward(ctx, d_hs):
         x, w_ih, w_hh, hs, cs, acts, tanhs = ctx.saved_tensors
         if ctx.spent:
-            raise RuntimeError("an encoder LSTM runs backward once (its buffers become gradients)")
+            raise RuntimeError("an encoder LSTM runs backward once (its buffers are reused)")
         ctx.spent = True
         steps, rows, hidden = d_hs.shape
         dh = hs.new_zeros(rows, hidden)
         dc = hs.new_zeros(rows, hidden)
         arrays = [a.numpy() for a in (d_hs.contiguous(), dh, dc, acts, tanhs, cs)]
+        act_steps = acts.unbind()
         for t in reversed(range(steps)):
             kernels.sequence_back(*arrays, t)  # acts[t] becomes the gates' gradient
             if t:
-                torch.mm(acts[t], w_hh, out=dh)
+                torch.mm(act_steps[t], w_hh, out=dh)
         d_gates = acts.flatten(0, 1)
         d_x = (d_gates @ w_ih).view_as(x) if ctx.needs_input_grad[0] else None
         d_w_ih = d_gates.t() @ x.flatten(0, 1)
         d_w_hh = d_gates[rows:].t() @ hs[1:steps].flatten(0, 1)
-        return d_x, d_w_ih, d_w_hh, d_gates.sum(0)
+        d_bias = d_gates.sum(0)
+        _BUFFERS.give(cs, acts, tanhs)
+        return d_x, d_w_ih, d_w_hh, d_bias
 
 
 def run_lstm(lstm: nn.LSTM, x: torch.Tensor) -> torch.Tensor:
@@ -71,4 +85,9 @@ def run_lstm(lstm: nn.LSTM, x: torch.Tensor) -> torch.Tensor:
     else the module itself."""
     if not kernels.compiled(x):
         return lstm(x)[0]
-    return _Sequence.apply(x, *lstm_weights(lstm))
+    weights = lstm_weights(lstm)
+    if torch.is_grad_enabled() and (x.requires_grad or lstm.weight_hh_l0.requires_grad):
+        return _Sequence.apply(x, *weights)
+    hs, kept = _forward(x, *weights)
+    _BUFFERS.give(*kept)
+    return hs[1:]
