@@ -55,6 +55,23 @@ def main() -> None:
             f"{statistics.mean(mb) - statistics.mean(ma):>+14.4f}   (before's seeds spread "
             f"{spread:.4f})"
         )
+        print(f"{'':<22}{paired(ma, mb)}")
+
+
+def paired(before: list[float], after: list[float]) -> str:
+    """The paired difference's mean with its 95 % t interval, and how many seeds got worse."""
+    diffs = [b - a for a, b in zip(before, after, strict=True)]
+    worse = sum(d > 0 for d in diffs)
+    if len(diffs) < 2:
+        return f"{worse} of {len(diffs)} seeds worse"
+    from scipy.stats import t
+
+    half = t.ppf(0.975, len(diffs) - 1) * statistics.stdev(diffs) / len(diffs) ** 0.5
+    mean = statistics.mean(diffs)
+    return (
+        f"paired difference {mean:+.4f} [{mean - half:+.4f}, {mean + half:+.4f}] (95 %), "
+        f"{worse} of {len(diffs)} seeds worse"
+    )
 
 
 if __name__ == "__main__":

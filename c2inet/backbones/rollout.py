@@ -67,9 +67,10 @@ def _forward_step(hx, cs, acts, tanhs, out, w_out_t, b_out, now, then, residual)
 
 
 class _Buffers:
-    """Flat buffers handed out again once a rollout is done with them. A training step's
-    rollout holds about 25 MB; fresh, every page of it faults in (glibc maps blocks that large
-    anew each time), which cost about 15 % of a decoder step. Best fit first; a new buffer has
+    """Flat buffers handed out again once a rollout (or an encoder LSTM,
+    :mod:`~c2inet.backbones.sequence`) is done with them. A training step's rollout holds about
+    25 MB; fresh, every page of it faults in (glibc maps blocks that large anew each time),
+    which cost about 15 % of a decoder step. Best fit first; a new buffer has
     room for a batch a quarter larger; at most ``keep`` are kept, none over ``largest`` bytes."""
 
     def __init__(self, keep: int = 12, largest: int = 64 << 20):

@@ -112,9 +112,12 @@ def test_the_variety_losss_unreached_samples_are_not_walked_back(monkeypatch):
 def test_the_compiled_steps_are_the_tensor_steps_within_float32_rounding(residual, monkeypatch):
     decoder, cond, last_rel = decoders(residual, torch.float32)
     out, grads = outputs_and_gradients(decoder, "rollout", cond, last_rel)
+    with torch.no_grad():  # the lean loop, compiled too
+        lean = decoder(cond, last_rel)
     monkeypatch.setattr(kernels, "COMPILED", False)
     ref, ref_grads = outputs_and_gradients(decoder, "rollout", cond, last_rel)
     assert not torch.equal(out, ref)  # the two paths really differ (rounding)
     torch.testing.assert_close(out, ref, rtol=1e-5, atol=1e-6)
+    torch.testing.assert_close(lean, out, rtol=0, atol=0)
     for grad, expected in zip(grads, ref_grads, strict=True):
         assert (grad - expected).abs().max() <= 1e-5 * expected.abs().max()

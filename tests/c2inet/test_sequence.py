@@ -5,10 +5,9 @@ import pytest
 import torch
 from torch import nn
 
+from c2inet.backbones import BACKBONES, sequence
 from c2inet.backbones import rollout_kernels as kernels
-from c2inet.backbones import sequence
 from c2inet.backbones.sequence import run_lstm
-from c2inet.backbones.stgat import STGATEncoder
 
 
 def lstm_and_input(dtype=torch.float32):
@@ -43,7 +42,9 @@ def test_float64_and_the_reference_backbone_run_the_module_itself(monkeypatch):
     monkeypatch.setattr(sequence, "_Sequence", None)  # any use of the compiled path fails
     lstm, x = lstm_and_input(torch.float64)
     torch.testing.assert_close(run_lstm(lstm, x), lstm(x)[0], rtol=0, atol=0)
-    assert STGATEncoder(compiled=False)._lstm(lstm.float(), x.float().detach()).shape == (8, 40, 32)
+    reference = BACKBONES["stgat-cell"](cond_dim=8).encoder  # tensor operations throughout
+    assert reference._lstm(lstm.float(), x.float().detach()).shape == (8, 40, 32)
+    assert BACKBONES["stgat"](cond_dim=8).encoder.compiled and not reference.compiled
 
 
 def test_a_second_backward_is_refused():
