@@ -4,10 +4,12 @@ and trains on one torch thread: with tests in parallel (``make test``), torch's 
 thread per core made training several times slower (the project's rule for runs, too)."""
 
 import fcntl
+import importlib.util
 import os
 import shutil
 from collections.abc import Callable
 from pathlib import Path
+from types import ModuleType
 
 import pytest
 import torch
@@ -51,3 +53,21 @@ def made_once(tmp_path_factory) -> Callable[[str, Callable[[Path], None]], Path]
         return folder
 
     return folder_made_once
+
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def load_script(relative: str) -> ModuleType:
+    """A script of the repository (``benchmarks/``, ``scripts/``: not a package) as a module."""
+    path = ROOT / relative
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture
+def script() -> Callable[[str], ModuleType]:
+    """``script("benchmarks/tuning_noise.py")``: that script as a module."""
+    return load_script

@@ -158,15 +158,16 @@ class _Rollout(torch.autograd.Function):
                 torch.index_select(buffer, 1, index, out=taken)
             d_rows = d_outs.index_select(1, index)
             dh, carry, *weights = _backward(weight, w_out, d_rows, *rows, ctx.residual)
-            grads = (_scatter(dh, index, live), _scatter(carry, index, live), *weights)
+            grads = (_scatter(dh, index, len(live)), _scatter(carry, index, len(live)), *weights)
             _BUFFERS.give(*rows)
         _BUFFERS.give(*kept)
         return *grads, None, None
 
 
-def _scatter(rows: torch.Tensor, index: torch.Tensor, live: torch.Tensor) -> torch.Tensor:
-    full = rows.new_zeros(len(live), rows.shape[1])
-    return full.index_copy_(0, index, rows)
+def _scatter(rows: torch.Tensor, index: torch.Tensor, total: int) -> torch.Tensor:
+    """The walked rows' gradients (n, F) back at their places ``index`` of ``total`` rows, the
+    rest zero (no loss reached them)."""
+    return rows.new_zeros(total, rows.shape[1]).index_copy_(0, index, rows)
 
 
 def _backward(weight, w_out, d_outs, hx, cs, acts, tanhs, residual: bool):

@@ -124,14 +124,13 @@ class STGAT(nn.Module):
     """
 
     context_dim = 64  # the encoder's output: 32 trajectory + 32 graph
-    decoder_kernel = "rollout"
+    compiled = True  # the rollout and compiled LSTM steps; False: tensor operations throughout
 
     def __init__(self, cond_dim: int, pred_len: int = 12, residual: bool = False):
         super().__init__()
-        self.encoder = STGATEncoder(compiled=self.decoder_kernel == "rollout")
-        self.decoder = Decoder(
-            cond_dim, pred_len=pred_len, residual=residual, kernel=self.decoder_kernel
-        )
+        self.encoder = STGATEncoder(compiled=self.compiled)
+        kernel = "rollout" if self.compiled else "cell"
+        self.decoder = Decoder(cond_dim, pred_len=pred_len, residual=residual, kernel=kernel)
         assert self.encoder.out_dim == self.context_dim
 
     def encode(self, obs_rel: torch.Tensor, batch: Batch) -> torch.Tensor:
@@ -148,4 +147,4 @@ class STGATCell(STGAT):
     parameters (checkpoints load either way), slower to train; the reference the compiled
     backbone is tested and timed against."""
 
-    decoder_kernel = "cell"
+    compiled = False

@@ -1,6 +1,6 @@
 """The learner: batching without leakage, method hooks, checkpoints, and learning itself."""
 
-from dataclasses import replace
+from dataclasses import FrozenInstanceError, replace
 
 import numpy as np
 import pytest
@@ -34,6 +34,17 @@ def test_padding_round_trips_agents_to_scene_slots():
     padded, mask = batch.pad(x)
     assert mask.sum() == len(x) and padded.shape[:2] == (batch.num_scenes, batch.max_agents)
     torch.testing.assert_close(batch.unpad(padded), x)
+
+
+def test_a_batch_is_frozen_and_derives_its_displacements_and_scales_once():
+    """A training step asks for them a dozen times; computed once, they cannot go stale."""
+    batch = make_batch(toy_windows())
+    with pytest.raises(FrozenInstanceError):
+        batch.obs = batch.obs + 1
+    for name in ("obs_rel", "scale", "last_rel", "fut_rel", "agent_counts"):
+        assert getattr(batch, name) is getattr(batch, name), name  # kept, not made again
+    fresh = make_batch(toy_windows())
+    torch.testing.assert_close(batch.scale, fresh.scale, rtol=0, atol=0)
 
 
 def test_joined_batches_are_the_batch_of_their_scenes():

@@ -681,21 +681,13 @@ def test_settings_tuned_by_another_benchmark_reach_every_job_and_no_trial_runs(t
     assert "no tuning.json there" in capsys.readouterr().err
 
 
-def test_the_ranking_transfer_is_one_for_one_ranking_and_falls_as_it_reverses():
+def test_the_ranking_transfer_is_one_for_one_ranking_and_falls_as_it_reverses(script, monkeypatch):
     """``scripts/ranking_transfer.py``: Kendall's tau of a board with itself is 1; with its
     methods' errors reversed, -1; a ranking that holds only within noise has an interval that
     holds less than the point; the committed density boards (40 and 60 scenes) agree partly."""
-    import importlib.util
-    import sys
-    from pathlib import Path
-
     root = Path(__file__).resolve().parents[2]
-    sys.path.insert(0, str(root / "scripts"))
-    spec = importlib.util.spec_from_file_location(
-        "ranking", root / "scripts" / "ranking_transfer.py"
-    )
-    ranking = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(ranking)
+    monkeypatch.syspath_prepend(str(root / "scripts"))  # it imports tuning_stability beside it
+    ranking = script("scripts/ranking_transfer.py")
     rng = np.random.default_rng(0)
     a = np.linspace(0.1, 0.5, 6) + rng.normal(0, 0.01, (8, 6))  # 8 seeds, 6 methods well apart
     same = ranking.transfer(a, a + rng.normal(0, 0.01, a.shape), resamples=200)
@@ -737,15 +729,10 @@ def test_a_board_of_a_family_from_a_scenarios_dir_is_sized_without_parsing_it_ba
     assert BenchConfig(base, trials=2).sizes() == "reduced"
 
 
-def test_the_tuning_noise_measure_reads_a_planted_race():
+def test_the_tuning_noise_measure_reads_a_planted_race(script):
     """``benchmarks/tuning_noise.py``: two candidates that move together from draw to draw have
     no paired noise; one better on its own draw than on the others carries a winner's curse."""
-    import importlib.util
-
-    path = Path(__file__).parents[2] / "benchmarks" / "tuning_noise.py"
-    spec = importlib.util.spec_from_file_location("tuning_noise", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = script("benchmarks/tuning_noise.py")
     together = np.array([[0.10, 0.20, 0.30], [0.15, 0.25, 0.35]])
     n = module.noise([together])
     assert n["paired"] == pytest.approx(0.0) and n["one_draw"] == pytest.approx(0.1)

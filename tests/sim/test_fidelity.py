@@ -109,22 +109,17 @@ def test_the_sim_only_model_never_sees_a_real_training_window(tmp_path):
 
 
 def test_the_pretraining_script_runs_its_three_arms_and_its_committed_table_is_its_own(
-    tmp_path, monkeypatch
+    tmp_path, monkeypatch, script
 ):
     """``scripts/pretrain_transfer.py``: per scene, the tenth alone, the fitted crowd then the
     tenth, the fitted crowd then all (each a ``sim.run`` of fine-tuning), read back from each
     run's metrics beside the fidelity study's columns; the committed table is what its JSON
     prints, not edited by hand."""
-    import importlib.util
     import subprocess
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[2]
-    spec = importlib.util.spec_from_file_location(
-        "pretrain", root / "scripts" / "pretrain_transfer.py"
-    )
-    pretrain = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(pretrain)
+    pretrain = script("scripts/pretrain_transfer.py")
     commands = []
 
     def fake_run(command, check):  # a run that ends with its last task's ADE, by arm
