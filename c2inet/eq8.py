@@ -26,21 +26,29 @@ ADAM = (0.9, 0.999, 1e-8)  # torch.optim.Adam's defaults
 
 class _Density:
     """A fixed diagonal mixture's log density and its gradient at many points, as matrix
-    products: log N(c; m, v) = -0.5 c^2 . (1/v) + c . (m/v) - 0.5 sum(m^2/v + log v + log 2 pi)."""
+    products: log N(c; m, v) = -0.5 c^2 . (1/v) + c . (m/v) - 0.5 sum(m^2/v + log v + log 2 pi).
+    One product gives the (S, K) log densities from [c^2, c], one exponential their
+    responsibilities, and one product the gradient's two sums over the components."""
 
     def __init__(self, mixture):
-        self.precision = (-mixture.logvars).exp()  # (K, d)
-        self.scaled = mixture.means * self.precision
+        precision = (-mixture.logvars).exp()  # (K, d)
+        scaled = mixture.means * precision
+        self.dim = precision.shape[1]
+        self.quadratic = torch.cat([-0.5 * precision, scaled], 1).T.contiguous()  # (2d, K)
+        self.moments = torch.cat([scaled, precision], 1)  # (K, 2d)
         self.const = mixture.weights.clamp_min(1e-30).log() - 0.5 * (
-            mixture.means * self.scaled + mixture.logvars + LOG_2PI
+            mixture.means * scaled + mixture.logvars + LOG_2PI
         ).sum(-1)
 
     def log_prob_and_grad(self, c: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """log X(c) (S,) and its gradient in c (S, d)."""
-        per = (c * c) @ self.precision.T * -0.5 + c @ self.scaled.T + self.const  # (S, K)
-        log_x = torch.logsumexp(per, dim=-1)
-        r = (per - log_x[:, None]).exp()  # responsibilities
-        return log_x, r @ self.scaled - c * (r @ self.precision)
+        """log X(c) (S,) and its gradient in c (S, d): sum_k r_k (m_k - c) / v_k."""
+        per = torch.addmm(self.const, torch.cat([c * c, c], 1), self.quadratic)  # (S, K)
+        peak = per.amax(1, keepdim=True)
+        weights = per.sub_(peak).exp_()  # responsibilities up to their sum
+        total = weights.sum(1, keepdim=True)
+        sums = (weights @ self.moments).div_(total)  # (S, 2d): sum_k r_k m_k/v_k, r_k / v_k
+        log_x = (total.log_() + peak)[:, 0]
+        return log_x, sums[:, : self.dim] - c * sums[:, self.dim :]
 
 
 def _skl_gradient(mean, logvar, current) -> tuple[torch.Tensor, torch.Tensor]:

@@ -9,6 +9,8 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+from c2inet.backbones import attention
+from c2inet.backbones import rollout_kernels as kernels
 from c2inet.backbones.base import register
 from c2inet.backbones.rollout import lstm_rollout, rollout_weights
 from c2inet.backbones.sequence import run_lstm
@@ -39,6 +41,21 @@ class GraphAttention(nn.Module):
         out = out.flatten(-2) if self.concat else out.mean(-2)
         return out + self.bias
 
+    def over_scenes(self, x: torch.Tensor, batch: Batch) -> torch.Tensor:
+        """:meth:`forward` on per-agent rows x (T, N, F), through the compiled kernels
+        (:func:`~c2inet.backbones.attention.attend`): no padding."""
+        h = self.linear(x).unflatten(-1, (self.heads, self.out_dim))
+        out = attention.attend(h, self.att_src, self.att_dst, batch.scene_start, batch.max_agents)
+        out = out.flatten(-2) if self.concat else out.mean(-2)
+        return out + self.bias
+
+    def alone(self, x: torch.Tensor) -> torch.Tensor:
+        """:meth:`forward` for agents alone in their scene, (..., F) per agent: each attends only
+        to itself with weight exactly 1, so its output is its own projection."""
+        h = self.linear(x)
+        h = h if self.concat else h.unflatten(-1, (self.heads, self.out_dim)).mean(-2)
+        return h + self.bias
+
 
 class STGATEncoder(nn.Module):
     """Encodes observed displacements into a 64-d vector per agent (32 trajectory + 32 graph).
@@ -60,10 +77,26 @@ class STGATEncoder(nn.Module):
 
     def forward(self, obs_rel: torch.Tensor, batch: Batch) -> torch.Tensor:
         traj = self._lstm(self.traj_lstm, obs_rel)  # (T, N, 32)
-        padded, mask = batch.pad(traj)
-        social = self.gat2(nn.functional.elu(self.gat1(padded, mask)), mask)
-        graph = self._lstm(self.graph_lstm, batch.unpad(social))
+        graph = self._lstm(self.graph_lstm, self._social(traj, batch))
         return torch.cat([traj[-1], graph[-1]], dim=-1)
+
+    def _social(self, traj: torch.Tensor, batch: Batch) -> torch.Tensor:
+        """The two graph attention layers' output per agent (T, N, 32): padded over the scenes
+        of several agents, as a projection for an agent alone (:class:`~c2inet.batch.Company`)."""
+        elu = nn.functional.elu
+        if self.compiled and kernels.compiled(traj):
+            return self.gat2.over_scenes(elu(self.gat1.over_scenes(traj, batch)), batch)
+        company = batch.company
+        rows = []
+        if len(company.scene_of):
+            padded, mask = company.pad(traj[:, company.together]), company.mask
+            rows.append(company.unpad(self.gat2(elu(self.gat1(padded, mask)), mask)))
+        if company.alone is not None:
+            rows.append(self.gat2.alone(elu(self.gat1.alone(traj[:, company.alone]))))
+        if len(rows) == 1:
+            return rows[0]
+        joined = torch.cat(rows, 1)
+        return joined if company.order is None else joined[:, company.order]
 
     def _lstm(self, lstm: nn.LSTM, x: torch.Tensor) -> torch.Tensor:
         return run_lstm(lstm, x) if self.compiled else lstm(x)[0]
