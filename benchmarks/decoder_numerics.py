@@ -1,8 +1,9 @@
 """Two runs of the same methods and seeds that differ only in the backbone (``--backbone
-stgat-cell`` against ``stgat``: the decoder stepped through ``LSTMCell`` or rolled out), side by
-side: each method's final average ADE (the last row of the task-by-task matrix, best of K) per
-seed, the mean over seeds, their spread, and the difference, with each run's training CPU
-seconds. The rollout changes rounding only; this shows what that does after training.
+stgat-cell`` against ``stgat``: the network in tensor operations or compiled), side by side:
+each method's final average ADE (the last row of the task-by-task matrix, best of K) per seed,
+over the methods and seeds both runs hold, the mean over seeds, their spread, the difference
+with its paired 95 % interval, and each run's training CPU seconds. The compiled backbone
+changes rounding only; this shows what that does after training.
 
     python -m sim.run --scenario crowd_noise_0.1..0.6 --methods finetune,c2inet-online,derpp \\
         --seeds 3 --set data.splits.train=100 --no-record --backbone stgat-cell --out A
@@ -42,8 +43,8 @@ def main() -> None:
         f"{'method':<16}{'seed':>6}{'before':>10}{'after':>10}{'after-before':>14}"
         f"{'CPU s before':>14}{'after':>8}"
     )
-    for method in before:
-        seeds = sorted(before[method])
+    for method in sorted(before.keys() & after.keys()):  # the methods and seeds both ran
+        seeds = sorted(before[method].keys() & after[method].keys())
         for seed in seeds:
             (a, ca), (b, cb) = before[method][seed], after[method][seed]
             print(f"{method:<16}{seed:>6}{a:>10.4f}{b:>10.4f}{b - a:>+14.4f}{ca:>14.0f}{cb:>8.0f}")

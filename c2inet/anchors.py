@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import torch
 
-from c2inet.batch import Batch, make_batch
+from c2inet.batch import make_batch
 from c2inet.data import Windows
 from c2inet.gaussians import GaussianMixture, gaussian_sample, responsibilities
 
@@ -36,10 +36,6 @@ class Anchors:
 
     def __len__(self) -> int:
         return len(self.cond)
-
-    def batch(self) -> Batch:
-        """The pseudo-inputs as a batch of one-agent scenes, on the anchors' device."""
-        return make_batch(self.inputs, device=self.cond.device)
 
     def select(self, index: torch.Tensor) -> Anchors:
         return Anchors(

@@ -85,28 +85,6 @@ class Batch:
     def unpad(self, padded: torch.Tensor) -> torch.Tensor:
         return padded[..., self.scene_of, self.slot_of, :]
 
-    @cached_property
-    def company(self) -> Company:
-        """The agents that share their scene, laid out for graph attention, and those alone."""
-        crowded = self.agent_counts > 1
-        in_crowd = crowded[self.scene_of]
-        n = int(in_crowd.sum())
-        if bool(in_crowd[:n].all()):  # those together come first (a batch, then anchors)
-            together, alone, order = slice(0, n), slice(n, None), None
-            scene_of, slot_of = self.scene_of[:n], self.slot_of[:n]
-        else:
-            together, alone = in_crowd.nonzero()[:, 0], (~in_crowd).nonzero()[:, 0]
-            scene_of = (crowded.cumsum(0) - 1)[self.scene_of[together]]  # renumbered
-            slot_of = self.slot_of[together]
-            order = torch.empty_like(self.scene_of)  # agent i's row in cat([together, alone])
-            order[torch.cat([together, alone])] = torch.arange(len(order), device=order.device)
-        width = int(self.agent_counts[crowded].max()) if n else 0
-        mask = torch.zeros(int(crowded.sum()), width, dtype=torch.bool, device=self.obs.device)
-        mask[scene_of, slot_of] = True
-        return Company(
-            together, scene_of, slot_of, mask, alone if n < len(in_crowd) else None, order
-        )
-
     @staticmethod
     def concat(parts: list[Batch]) -> Batch:
         """One batch of the scenes of ``parts``, in order: one forward pass where a method adds
@@ -123,31 +101,6 @@ class Batch:
             slot_of=torch.cat([p.slot_of for p in parts]),
             max_agents=max(p.max_agents for p in parts),
         )
-
-
-@dataclass(frozen=True)
-class Company:
-    """Where graph attention runs in a batch: padded over the scenes of several agents. An agent
-    alone in its scene attends only to itself (a softmax over one score is exactly 1), so its
-    output is its own projection and it skips the padding: one-agent scenes (real data's, the
-    anchors' pseudo-inputs) cost no padded slots."""
-
-    together: slice | torch.Tensor  # the n agents that share their scene
-    scene_of: torch.Tensor  # (n,) their scene among the scenes of several agents
-    slot_of: torch.Tensor  # (n,) their slot in it
-    mask: torch.Tensor  # (B', A) the slots that hold an agent
-    alone: slice | torch.Tensor | None  # the agents alone in their scene; None: nobody
-    # (N,) agent i's row in cat([together, alone]); None when those together come first
-    order: torch.Tensor | None
-
-    def pad(self, x: torch.Tensor) -> torch.Tensor:
-        """(..., n, F) rows of the agents together -> (..., B', A, F) per scene slot."""
-        padded = x.new_zeros((*x.shape[:-2], *self.mask.shape, x.shape[-1]))
-        padded[..., self.scene_of, self.slot_of, :] = x
-        return padded
-
-    def unpad(self, padded: torch.Tensor) -> torch.Tensor:
-        return padded[..., self.scene_of, self.slot_of, :]
 
 
 def make_batch(

@@ -20,7 +20,7 @@ from torch import nn
 
 from c2inet.anchors import Anchors
 from c2inet.backbones import BACKBONES
-from c2inet.batch import Batch, variety_loss
+from c2inet.batch import Batch, make_batch, variety_loss
 from c2inet.data import OBS_LEN
 from c2inet.device import model_device
 from c2inet.gaussians import (
@@ -197,19 +197,6 @@ class C2INetModel(Predictor):
         c_input = batch.pool(c_input) if self.c_per_scene else c_input
         return Posteriors(context, *self.to_c(c_input))
 
-    def posteriors_beside(self, batch: Batch, other: Batch) -> tuple[Posteriors, Posteriors]:
-        """:meth:`posteriors` of two batches from one encoder call over the scenes of both (they
-        stay apart: an agent attends only to its own scene's); the anchors' pseudo-inputs ride
-        beside a training batch this way."""
-        post = self.posteriors(Batch.concat([batch, other]))
-        agents = len(batch.scene_of)
-        rows = batch.num_scenes if self.c_per_scene else agents
-        context, mean, logvar = post.context, post.c_mean, post.c_logvar
-        return (
-            Posteriors(context[:agents], mean[:rows], logvar[:rows]),
-            Posteriors(context[agents:], mean[rows:], logvar[rows:]),
-        )
-
     def per_agent(self, c: torch.Tensor, batch: Batch) -> torch.Tensor:
         """C (S, N or B, dc) as one row per agent (S, N, dc)."""
         return c[:, batch.scene_of] if self.c_per_scene else c
@@ -306,16 +293,16 @@ class C2INetModel(Predictor):
         return pred, out[:, samples * agents :]
 
     def _held(
-        self, anchors: Anchors, future: torch.Tensor | None, post: Posteriors | None
+        self, anchors: Anchors, future: torch.Tensor | None, encoder: bool
     ) -> dict[str, torch.Tensor]:
         """The BooVAE penalties: the decoder's drift at the anchors (as a negative
-        log-likelihood) and Q(C|X)'s at their pseudo-inputs (symmetric KL; ``post``: Q(C|X)
-        there now)."""
+        log-likelihood) and Q(C|X)'s at their pseudo-inputs (symmetric KL)."""
         held = {}
         if future is not None:
             error = ((future - anchors.future) ** 2).sum(dim=(0, 2)).mean()
             held["distill_decoder"] = error / (2 * self.config.likelihood_std**2)
-        if post is not None:
+        if encoder:  # its own encoder call: padded into the batch, each would take A slots
+            post = self.posteriors(make_batch(anchors.inputs, device=anchors.cond.device))
             skl = symmetric_kl(post.c_mean, post.c_logvar, anchors.c_mean, anchors.c_logvar)
             held["distill_encoder"] = skl.mean()
         return held
@@ -331,10 +318,7 @@ class C2INetModel(Predictor):
         """
         cfg = self.config
         anchors, hold_decoder, hold_encoder = self._protection()
-        if hold_encoder:  # the anchors' pseudo-inputs ride in the batch's encoder call
-            post, anchor_post = self.posteriors_beside(batch, anchors.batch())
-        else:
-            post, anchor_post = self.posteriors(batch), None
+        post = self.posteriors(batch)
         z, c, mz, lz = self.latents(batch, post, max(k_train, cfg.n_mc), "posterior")
         cond = self.drop_context(self.conditions(batch, post, z, c))
         pred, anchor_future = self._decode(batch, cond[:k_train], anchors if hold_decoder else None)
@@ -368,7 +352,7 @@ class C2INetModel(Predictor):
             loss = loss + cfg.mi_weight * (cfg.mi_floor_c - mi).clamp_min(0)
             parts["mi_c"] = mi.item()
         if anchors is not None:
-            for name, held in self._held(anchors, anchor_future, anchor_post).items():
+            for name, held in self._held(anchors, anchor_future, hold_encoder).items():
                 loss = loss + self.queue.config.distill_weight * held
                 parts[name] = held.item()
         return LossOutput(loss, parts, pred)

@@ -20,12 +20,12 @@ import torch
 from numba import njit
 from torch.autograd.function import once_differentiable
 
-from c2inet.backbones.rollout_kernels import _COMPILE
+from c2inet.backbones.rollout_kernels import NUMBA_OPTIONS
 
 SLOPE = np.float32(0.2)  # the scores' leaky ReLU, as STGAT's
 
 
-@njit(**_COMPILE)
+@njit(**NUMBA_OPTIONS)
 def _scores(h, a_src, a_dst, src, dst):  # pragma: no cover (compiled)
     """Each agent's source and destination score per head: h . a over the head's features."""
     steps, agents, heads, dim = h.shape
@@ -41,7 +41,7 @@ def _scores(h, a_src, a_dst, src, dst):  # pragma: no cover (compiled)
                 dst[t, i, k] = d
 
 
-@njit(**_COMPILE)
+@njit(**NUMBA_OPTIONS)
 def attend_forward(h, a_src, a_dst, starts, src, dst, weights, out):  # pragma: no cover
     """out[t, i, k] = sum_j softmax_j(leaky(src_i + dst_j)) h[t, j, k] over the agents j of i's
     scene; ``weights`` (T, N, A, K) keeps the softmax, j counted from the scene's first agent."""
@@ -73,10 +73,10 @@ def attend_forward(h, a_src, a_dst, starts, src, dst, weights, out):  # pragma: 
                             out[t, i, k, f] += w * h[t, j, k, f]
 
 
-@njit(**_COMPILE)
+@njit(**NUMBA_OPTIONS)
 def attend_backward(d_out, h, a_src, a_dst, starts, src, dst, weights, d_h, d_a_src, d_a_dst):
     """The gradients of :func:`attend_forward`'s output ``d_out`` reaching h (``d_h``, zeroed
-    here) and both attention vectors (``d_a_src``, ``d_a_dst``, zeroed here)."""  # noqa: D401
+    here) and both attention vectors (``d_a_src``, ``d_a_dst``, zeroed here)."""
     steps, agents, heads, dim = h.shape
     d_src = np.zeros((agents, heads), dtype=h.dtype)
     d_dst = np.zeros((agents, heads), dtype=h.dtype)

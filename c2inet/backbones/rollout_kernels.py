@@ -43,10 +43,11 @@ def compiled(tensor: torch.Tensor) -> bool:
     return COMPILED and tensor.device.type == "cpu" and tensor.dtype == torch.float32
 
 
-_COMPILE = {"cache": True, "fastmath": True, "nogil": True, "error_model": "numpy"}
+# every kernel: cached beside the module, vectorised with fast math, run without the GIL
+NUMBA_OPTIONS = {"cache": True, "fastmath": True, "nogil": True, "error_model": "numpy"}
 
 
-@njit(inline="always", **_COMPILE)
+@njit(inline="always", **NUMBA_OPTIONS)
 def tanh32(x):  # pragma: no cover (compiled)
     """tanh in float32 as an odd rational function, branch-free so that loops vectorise."""
     x = min(max(x, -_CLAMP), _CLAMP)
@@ -56,12 +57,12 @@ def tanh32(x):  # pragma: no cover (compiled)
     return x if abs(x) < _F(0.0004) else p / q
 
 
-@njit(inline="always", **_COMPILE)
+@njit(inline="always", **NUMBA_OPTIONS)
 def _sigmoid32(x):  # pragma: no cover (compiled)
     return _F(0.5) + _F(0.5) * tanh32(_F(0.5) * x)
 
 
-@njit(inline="always", **_COMPILE)
+@njit(inline="always", **NUMBA_OPTIONS)
 def _cell(a, c_prev, c, th, h):  # pragma: no cover (compiled)
     """An LSTM cell from its gates' pre-activations ``a`` (4H; i, f, g, o), activated in place:
     the cell state ``c``, its tanh ``th`` and the hidden state ``h`` (H each). Every loop
@@ -83,7 +84,7 @@ def _cell(a, c_prev, c, th, h):  # pragma: no cover (compiled)
         h[j] = o[j] * th[j]
 
 
-@njit(inline="always", **_COMPILE)
+@njit(inline="always", **NUMBA_OPTIONS)
 def _cell_back(a, dh, dc, th, c_prev):  # pragma: no cover (compiled)
     """Back through a cell from the hidden state's gradient ``dh``: the gates' gradient over
     their activations ``a`` (4H), and the cell state's ``dc`` carried one step back."""
@@ -100,7 +101,7 @@ def _cell_back(a, dh, dc, th, c_prev):  # pragma: no cover (compiled)
         dc[j] = d_c * fj
 
 
-@njit(**_COMPILE)
+@njit(**NUMBA_OPTIONS)
 def forward_step(
     hx, cs, acts, tanhs, outs, w_out, b_out, now, then, at, t, residual
 ):  # pragma: no cover
@@ -122,7 +123,7 @@ def forward_step(
             h[hidden + k] = s
 
 
-@njit(**_COMPILE)
+@njit(**NUMBA_OPTIONS)
 def backward_step(
     d_outs, d_xs, carry, dh, dc, acts, tanhs, cs, w_out, to_x, t, residual
 ):  # pragma: no cover
@@ -148,7 +149,7 @@ def backward_step(
             carry[r, k] = s
 
 
-@njit(**_COMPILE)
+@njit(**NUMBA_OPTIONS)
 def sequence_step(hs, cs, acts, tanhs, t):  # pragma: no cover (compiled)
     """An encoder LSTM's step ``t`` from the gates' pre-activations ``acts[t]`` (R, 4H): the
     cell into ``cs[t + 1]``, ``tanhs[t]`` and the hidden state ``hs[t + 1]``."""
@@ -156,7 +157,7 @@ def sequence_step(hs, cs, acts, tanhs, t):  # pragma: no cover (compiled)
         _cell(acts[t, r], cs[t, r], cs[t + 1, r], tanhs[t, r], hs[t + 1, r])
 
 
-@njit(**_COMPILE)
+@njit(**NUMBA_OPTIONS)
 def sequence_back(d_hs, dh, dc, acts, tanhs, cs, t):  # pragma: no cover (compiled)
     """An encoder LSTM's step ``t`` back: ``dh`` gains the output's gradient ``d_hs[t]``, then
     the cell, over ``acts[t]``; ``dh``'s path through the weights on h is the caller's."""

@@ -1,7 +1,9 @@
 """STGAT (Huang et al., ICCV 2019): trajectory LSTM, per-step graph attention, graph LSTM, decoder.
 
-Scenes are batched with padding and masks: one attention call covers every scene of a batch at
-every observed step, with no Python loop over scenes.
+In tensor operations scenes are batched with padding and masks: one attention call covers every
+scene of a batch at every observed step, with no Python loop over scenes. Compiled (the CPU in
+float32), attention runs over each scene's agents without padding
+(:mod:`~c2inet.backbones.attention`).
 """
 
 from __future__ import annotations
@@ -49,19 +51,14 @@ class GraphAttention(nn.Module):
         out = out.flatten(-2) if self.concat else out.mean(-2)
         return out + self.bias
 
-    def alone(self, x: torch.Tensor) -> torch.Tensor:
-        """:meth:`forward` for agents alone in their scene, (..., F) per agent: each attends only
-        to itself with weight exactly 1, so its output is its own projection."""
-        h = self.linear(x)
-        h = h if self.concat else h.unflatten(-1, (self.heads, self.out_dim)).mean(-2)
-        return h + self.bias
-
 
 class STGATEncoder(nn.Module):
     """Encodes observed displacements into a 64-d vector per agent (32 trajectory + 32 graph).
 
     ``compiled``: its LSTMs run through :func:`~c2inet.backbones.sequence.run_lstm` (compiled
-    steps on the CPU in float32), else as the modules themselves (oneDNN); the same function.
+    steps on the CPU in float32) and its attention through
+    :func:`~c2inet.backbones.attention.attend`, else as the modules themselves (oneDNN, padded
+    attention); the same function.
     """
 
     def __init__(
@@ -81,22 +78,13 @@ class STGATEncoder(nn.Module):
         return torch.cat([traj[-1], graph[-1]], dim=-1)
 
     def _social(self, traj: torch.Tensor, batch: Batch) -> torch.Tensor:
-        """The two graph attention layers' output per agent (T, N, 32): padded over the scenes
-        of several agents, as a projection for an agent alone (:class:`~c2inet.batch.Company`)."""
+        """The two graph attention layers' output per agent (T, N, 32): compiled over each
+        scene's agents, else padded to the batch's widest scene (tensor operations)."""
         elu = nn.functional.elu
         if self.compiled and kernels.compiled(traj):
             return self.gat2.over_scenes(elu(self.gat1.over_scenes(traj, batch)), batch)
-        company = batch.company
-        rows = []
-        if len(company.scene_of):
-            padded, mask = company.pad(traj[:, company.together]), company.mask
-            rows.append(company.unpad(self.gat2(elu(self.gat1(padded, mask)), mask)))
-        if company.alone is not None:
-            rows.append(self.gat2.alone(elu(self.gat1.alone(traj[:, company.alone]))))
-        if len(rows) == 1:
-            return rows[0]
-        joined = torch.cat(rows, 1)
-        return joined if company.order is None else joined[:, company.order]
+        padded, mask = batch.pad(traj)
+        return batch.unpad(self.gat2(elu(self.gat1(padded, mask)), mask))
 
     def _lstm(self, lstm: nn.LSTM, x: torch.Tensor) -> torch.Tensor:
         return run_lstm(lstm, x) if self.compiled else lstm(x)[0]
