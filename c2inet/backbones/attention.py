@@ -3,12 +3,13 @@ one call forwards and one back for a layer's scores, softmax and weighted sums.
 
 STGAT's two attention layers in tensor operations pad every scene to the batch's widest, then
 run about thirty small operations forwards and back (scores, mask, softmax, a batched product of
-2 x 2 matrices on 2-agent scenes): 1.4 ms of a 2-agent encoder step that holds almost no
-arithmetic (measured). Here a layer is its linear projection in torch, then one compiled pass
-over each scene's agents (``scene_start`` offsets, so a scene of one agent attends to itself
-alone); the backward is one pass that returns the projection's, and both attention vectors',
-gradients. The same function as :class:`~c2inet.backbones.stgat.GraphAttention`'s padded form
-(tested within float32 rounding), which remains the path of every other device and dtype.
+2 x 2 matrices on 2-agent scenes): 1.36 of the encoder's 2.43 ms forwards and back on a 2-agent
+batch that holds almost no arithmetic (0.60 ms here; docs/learner.md). Here a layer is its
+linear projection in torch, then one compiled pass over each scene's agents (``scene_start``
+offsets, so a scene of one agent attends to itself alone); the backward is one pass that returns
+the projection's, and both attention vectors', gradients. The same function as
+:class:`~c2inet.backbones.stgat.GraphAttention`'s padded form (tested within float32 rounding),
+which remains the path of every other device and dtype.
 """
 
 from __future__ import annotations
@@ -74,7 +75,9 @@ def attend_forward(h, a_src, a_dst, starts, src, dst, weights, out):  # pragma: 
 
 
 @njit(**NUMBA_OPTIONS)
-def attend_backward(d_out, h, a_src, a_dst, starts, src, dst, weights, d_h, d_a_src, d_a_dst):
+def attend_backward(
+    d_out, h, a_src, a_dst, starts, src, dst, weights, d_h, d_a_src, d_a_dst
+):  # pragma: no cover
     """The gradients of :func:`attend_forward`'s output ``d_out`` reaching h (``d_h``, zeroed
     here) and both attention vectors (``d_a_src``, ``d_a_dst``, zeroed here)."""
     steps, agents, heads, dim = h.shape
@@ -117,7 +120,7 @@ def _forward(h, a_src, a_dst, starts, widest):
     steps, agents, heads, _ = h.shape
     src, dst = h.new_empty(steps, agents, heads), h.new_empty(steps, agents, heads)
     weights, out = h.new_empty(steps, agents, widest, heads), torch.empty_like(h)
-    arrays = (h, a_src.detach(), a_dst.detach(), starts, src, dst, weights, out)
+    arrays = (h, a_src, a_dst, starts, src, dst, weights, out)
     attend_forward(*(a.detach().numpy() for a in arrays))
     return out, (src, dst, weights)
 
