@@ -4,10 +4,10 @@ float32, and the sigmoid made from it within float32 rounding of the exact one."
 import numpy as np
 from numba import njit
 
-from c2inet.backbones.rollout_kernels import _COMPILE, _sigmoid32, tanh32
+from c2inet.backbones.rollout_kernels import NUMBA_OPTIONS, _sigmoid32, tanh32
 
 
-@njit(**{**_COMPILE, "cache": False})  # as the kernels compile it
+@njit(**{**NUMBA_OPTIONS, "cache": False})  # as the kernels compile it
 def _apply(x, sigmoid):  # pragma: no cover (compiled)
     out = np.empty_like(x)
     for j in range(len(x)):
