@@ -27,7 +27,6 @@ import torch
 from torch.autograd.function import once_differentiable
 
 from c2inet.backbones import rollout_kernels as kernels
-from c2inet.backbones.rollout_kernels import compiled
 
 
 def rollout_weights(embed: torch.nn.Linear, cell: torch.nn.LSTMCell) -> torch.Tensor:
@@ -98,7 +97,7 @@ class _Buffers:
         del self.free[: -self.keep]
 
 
-_BUFFERS = _Buffers()
+BUFFERS = _Buffers()  # shared with the encoder's LSTMs (sequence.py)
 
 
 def _run(h, x, weight, w_out, b_out, steps: int, residual: bool, keep: bool):
@@ -109,16 +108,16 @@ def _run(h, x, weight, w_out, b_out, steps: int, residual: bool, keep: bool):
     rows, hidden = h.shape
     width = x.shape[1]
     kept = steps + 1 if keep else 2
-    hx = _BUFFERS.take(h, kept, rows, hidden + width + 1)
+    hx = BUFFERS.take(h, kept, rows, hidden + width + 1)
     hx[..., -1] = 1
-    cs = _BUFFERS.take(h, kept, rows, hidden)
+    cs = BUFFERS.take(h, kept, rows, hidden)
     cs[0] = 0
-    acts = _BUFFERS.take(h, steps if keep else 1, rows, 4 * hidden)
-    tanhs = _BUFFERS.take(h, steps if keep else 1, rows, hidden)
+    acts = BUFFERS.take(h, steps if keep else 1, rows, 4 * hidden)
+    tanhs = BUFFERS.take(h, steps if keep else 1, rows, hidden)
     outs = h.new_empty(steps, rows, width)
     hx[0, :, :hidden], hx[0, :, hidden:-1] = h, x
     weight_t, w_out_t = weight.t(), w_out.t()
-    fused = compiled(h)
+    fused = kernels.compiled(h)
     if fused:
         arrays = [b.numpy() for b in (hx, cs, acts, tanhs, outs)]
         w_out_np, b_out_np = w_out.detach().numpy(), b_out.detach().numpy()
@@ -153,14 +152,14 @@ class _Rollout(torch.autograd.Function):
             grads = _backward(weight, w_out, d_outs, *kept, ctx.residual)
         else:  # the variety loss reaches one sample of every K: the rest need no walk back
             index = live.nonzero()[:, 0]
-            rows = [_BUFFERS.take(b, len(b), len(index), b.shape[2]) for b in kept]
+            rows = [BUFFERS.take(b, len(b), len(index), b.shape[2]) for b in kept]
             for buffer, taken in zip(kept, rows, strict=True):
                 torch.index_select(buffer, 1, index, out=taken)
             d_rows = d_outs.index_select(1, index)
             dh, carry, *weights = _backward(weight, w_out, d_rows, *rows, ctx.residual)
             grads = (_scatter(dh, index, len(live)), _scatter(carry, index, len(live)), *weights)
-            _BUFFERS.give(*rows)
-        _BUFFERS.give(*kept)
+            BUFFERS.give(*rows)
+        BUFFERS.give(*kept)
         return *grads, None, None
 
 
@@ -177,13 +176,13 @@ def _backward(weight, w_out, d_outs, hx, cs, acts, tanhs, residual: bool):
     steps, rows, width = d_outs.shape
     hidden = cs.shape[-1]
     d_gates = acts  # each step's gradient over its activations, read just before
-    d_xs = _BUFFERS.take(d_outs, *d_outs.shape)  # the gradient at every output, all paths
+    d_xs = BUFFERS.take(d_outs, *d_outs.shape)  # the gradient at every output, all paths
     dh = hx.new_zeros(rows, hidden)
     dc = hx.new_zeros(rows, hidden)
     carry = hx.new_zeros(rows, width)  # the gradient reaching x_t through the later steps
     to_h = weight[:, :hidden].contiguous()  # the gates' weights on h_{t-1} and on x_{t-1}
     to_x = weight[:, hidden:-1].contiguous()
-    if compiled(d_outs):
+    if kernels.compiled(d_outs):
         arrays = [a.numpy() for a in (d_outs.contiguous(), d_xs, carry, dh, dc, acts, tanhs, cs)]
         w_out_np, to_x_np = w_out.detach().numpy(), to_x.t().contiguous().numpy()
         for t in reversed(range(steps)):
@@ -198,7 +197,7 @@ def _backward(weight, w_out, d_outs, hx, cs, acts, tanhs, residual: bool):
             carry = torch.addmm(dx, d_gates[t], to_x) if residual else d_gates[t] @ to_x
     d_weight = (hx[:steps].flatten(0, 1).t() @ d_gates.flatten(0, 1)).t()
     d_out = (hx[1:].flatten(0, 1).t() @ d_xs.flatten(0, 1)).t()  # (out, H + out + 1)
-    _BUFFERS.give(d_xs)
+    BUFFERS.give(d_xs)
     return dh, carry, d_weight, d_out[:, :hidden], d_out[:, -1]
 
 
@@ -219,5 +218,5 @@ def lstm_rollout(
     if torch.is_grad_enabled() and any(a.requires_grad for a in args):
         return _Rollout.apply(*args, steps, residual)
     outs, kept = _run(*args, steps, residual, keep=False)
-    _BUFFERS.give(*kept)
+    BUFFERS.give(*kept)
     return outs

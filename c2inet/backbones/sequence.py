@@ -17,7 +17,7 @@ from torch import nn
 from torch.autograd.function import once_differentiable
 
 from c2inet.backbones import rollout_kernels as kernels
-from c2inet.backbones.rollout import _BUFFERS
+from c2inet.backbones.rollout import BUFFERS
 
 
 def lstm_weights(lstm: nn.LSTM) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -31,12 +31,12 @@ def _forward(x, w_ih, w_hh, bias):
     H), the last three from the reused buffers (fresh ones fault in page by page)."""
     steps, rows, _ = x.shape
     hidden = w_hh.shape[1]
-    acts = _BUFFERS.take(x, steps, rows, 4 * hidden)
+    acts = BUFFERS.take(x, steps, rows, 4 * hidden)
     torch.addmm(bias, x.flatten(0, 1), w_ih.t(), out=acts.view(steps * rows, 4 * hidden))
     hs = x.new_empty(steps + 1, rows, hidden)
-    cs = _BUFFERS.take(x, steps + 1, rows, hidden)
+    cs = BUFFERS.take(x, steps + 1, rows, hidden)
     hs[0], cs[0] = 0, 0
-    tanhs = _BUFFERS.take(x, steps, rows, hidden)
+    tanhs = BUFFERS.take(x, steps, rows, hidden)
     arrays = [a.numpy() for a in (hs, cs, acts, tanhs)]
     act_steps, h_steps, w_hh_t = acts.unbind(), hs.unbind(), w_hh.t()
     for t in range(steps):
@@ -75,7 +75,7 @@ class _Sequence(torch.autograd.Function):
         d_w_ih = d_gates.t() @ x.flatten(0, 1)
         d_w_hh = d_gates[rows:].t() @ hs[1:steps].flatten(0, 1)
         d_bias = d_gates.sum(0)
-        _BUFFERS.give(cs, acts, tanhs)
+        BUFFERS.give(cs, acts, tanhs)
         return d_x, d_w_ih, d_w_hh, d_bias
 
 
@@ -89,5 +89,5 @@ def run_lstm(lstm: nn.LSTM, x: torch.Tensor) -> torch.Tensor:
     if torch.is_grad_enabled() and (x.requires_grad or lstm.weight_hh_l0.requires_grad):
         return _Sequence.apply(x, *weights)
     hs, kept = _forward(x, *weights)
-    _BUFFERS.give(*kept)
+    BUFFERS.give(*kept)
     return hs[1:]

@@ -39,17 +39,18 @@ class GraphAttention(nn.Module):
         scores = scores.masked_fill(~mask[None, :, None, :, None], float("-inf"))
         weights = torch.softmax(scores, dim=3)
         weights = torch.nan_to_num(weights)  # rows of padding slots
-        out = torch.einsum("tbijh,tbjhd->tbihd", weights, h)
-        out = out.flatten(-2) if self.concat else out.mean(-2)
-        return out + self.bias
+        return self._combine(torch.einsum("tbijh,tbjhd->tbihd", weights, h))
 
     def over_scenes(self, x: torch.Tensor, batch: Batch) -> torch.Tensor:
         """:meth:`forward` on per-agent rows x (T, N, F), through the compiled kernels
         (:func:`~c2inet.backbones.attention.attend`): no padding."""
         h = self.linear(x).unflatten(-1, (self.heads, self.out_dim))
         out = attention.attend(h, self.att_src, self.att_dst, batch.scene_start, batch.max_agents)
-        out = out.flatten(-2) if self.concat else out.mean(-2)
-        return out + self.bias
+        return self._combine(out)
+
+    def _combine(self, out: torch.Tensor) -> torch.Tensor:
+        """The heads' outputs (..., H, D) concatenated or averaged, plus the bias."""
+        return (out.flatten(-2) if self.concat else out.mean(-2)) + self.bias
 
 
 class STGATEncoder(nn.Module):

@@ -8,7 +8,7 @@ import torch
 
 from c2inet.backbones import BACKBONES, rollout
 from c2inet.backbones import rollout_kernels as kernels
-from c2inet.backbones.rollout import _BUFFERS
+from c2inet.backbones.rollout import BUFFERS
 from c2inet.backbones.stgat import Decoder
 
 
@@ -59,10 +59,10 @@ def test_rollouts_alive_at_once_keep_their_own_buffers_and_a_finished_one_is_reu
     _, ref_grads = outputs_and_gradients(decoder, "cell", cond, last_rel, calls=3)
     for grad, expected in zip(grads, ref_grads, strict=True):
         assert (grad - expected).abs().max() <= 1e-5 * expected.abs().max()
-    kept = {b.data_ptr() for b in _BUFFERS.free}
+    kept = {b.data_ptr() for b in BUFFERS.free}
     decoder.kernel = "rollout"
     decoder(cond, last_rel).sum().backward()  # a step: takes buffers and gives them back
-    assert kept and {b.data_ptr() for b in _BUFFERS.free} <= kept
+    assert kept and {b.data_ptr() for b in BUFFERS.free} <= kept
 
 
 def test_stgat_decodes_through_the_rollout_and_stgat_cell_through_the_cell():
