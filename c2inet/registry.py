@@ -58,6 +58,7 @@ class Registry(Generic[T]):
         self.accepts, self.skip = accepts, skip
         self.entries: dict[str, T] = {}
         self.skipped: set[str] = set()  # broken plugins, each said once a process
+        self.loaded: set[str] = set()  # the entry points (their "module:attr") taken in
 
     def add(self, name: str, entry: T) -> T:
         """Register ``entry`` under ``name``; a name given to two entries is an error."""
@@ -66,6 +67,18 @@ class Registry(Generic[T]):
         self.entries[name] = entry
         return entry
 
+    def enrol(self, entry: T) -> T | None:
+        """The front door of a class at its definition (a kind's ``__init_subclass__``): one
+        defined in the kind's own package registers under its own name (a twin is an error);
+        one defined anywhere else (a plugin, a test's variant, a user's script) never
+        registers itself, so it can never replace an entry: a plugin comes in through its entry
+        point, where a taken name is one warning."""
+        name = own_name(entry)
+        module = getattr(entry, "__module__", "")
+        if name and (module == self.package or module.startswith(self.package + ".")):
+            return self.add(name, entry)
+        return None
+
     def discover(self) -> dict[str, T]:
         """Every entry: the package's modules, then the group's plugins."""
         package = importlib.import_module(self.package)  # or one module holding every entry
@@ -73,7 +86,7 @@ class Registry(Generic[T]):
             if module.name not in self.skip:
                 importlib.import_module(f"{self.package}.{module.name}")
         for point in importlib.metadata.entry_points(group=self.group):
-            if point.name not in self.entries and point.name not in self.skipped:
+            if point.value not in self.loaded and point.name not in self.skipped:
                 self._load(point)
         return self.entries
 
@@ -89,14 +102,20 @@ class Registry(Generic[T]):
                     f"{point.value} needs a name of its own: lower-case letters, digits, '-' "
                     f"and '_', at most 40 (got {name!r})"
                 )
-            if name in self.entries:
-                raise TypeError(f"its name {name!r} is a built-in {self.kind}'s; choose another")
+            if name in self.entries and self.entries[name] is not entry:
+                taken = "a built-in" if self._built_in(name) else "another plugin's"
+                raise TypeError(f"its name {name!r} is {taken} {self.kind}'s; choose another")
         except (Exception, SystemExit) as error:  # a third party's code: whatever it raises
             why = f"it exited ({error.code})" if isinstance(error, SystemExit) else error
             print(f"warning: {self.kind} plugin {point.name!r} skipped: {why}", file=sys.stderr)
             self.skipped.add(point.name)
             return
         self.entries[name] = entry
+        self.loaded.add(point.value)
+
+    def _built_in(self, name: str) -> bool:
+        module = getattr(self.entries[name], "__module__", "") or ""
+        return module == self.package or module.startswith(self.package + ".")
 
     def get(self, name: str) -> T:
         """The entry called ``name``; an :class:`UnknownName` naming the known ones."""
@@ -119,14 +138,17 @@ class Registry(Generic[T]):
     def isolated(self) -> Iterator[Registry[T]]:
         """The entries and skipped plugins restored as they were after the block (tests that
         add plugins)."""
-        entries, skipped = dict(self.entries), set(self.skipped)
+        entries, skipped, loaded = dict(self.entries), set(self.skipped), set(self.loaded)
         try:
             yield self
         finally:
-            self.entries.clear()
-            self.entries.update(entries)
-            self.skipped.clear()
-            self.skipped.update(skipped)
+            for kept, now in (
+                (entries, self.entries),
+                (skipped, self.skipped),
+                (loaded, self.loaded),
+            ):
+                now.clear()
+                now.update(kept)
 
 
 def first_line(entry: Any) -> str:

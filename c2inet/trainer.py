@@ -1,14 +1,14 @@
 """The continual trainer: tasks in order, L epochs each, then every task's test split evaluated.
 
 One trainer serves every method; methods add behaviour through hooks (``c2inet.methods.base``).
-Model selection is the last epoch of each task; no task's data is looked at outside its turn,
-except by methods that declare ``sees_old_tasks`` (the joint reference).
+Each task keeps its last epoch, or with ``select = "val"`` its epoch of lowest error on its own
+validation split (``c2inet.selection``); the learning rate follows a schedule that starts anew
+each task (``c2inet.schedule``). No task's data is looked at outside its turn, except by methods
+that declare ``sees_old_tasks`` (the joint reference).
 """
 
 from __future__ import annotations
 
-import itertools
-import json
 import math
 import zlib
 from collections.abc import Callable
@@ -19,16 +19,19 @@ from typing import Any
 import numpy as np
 import torch
 
+from c2inet.augment import AUGMENTATIONS, rotate_scenes
 from c2inet.batch import Batch, batches
+from c2inet.checkpoints import CheckpointStore, load_checkpoint
 from c2inet.data import Windows
 from c2inet.device import check_device_name, cuda_rng_state, model_device, resolve_device
 from c2inet.diagnostics import diagnose
 from c2inet.errors import InputError
 from c2inet.evaluation import evaluate, evaluate_all
-from c2inet.files import file_digest, write_atomic, write_text_atomic
 from c2inet.methods.base import Method, TaskContext
 from c2inet.metrics import average_seen
-from c2inet.options import Tunable, check_range, require
+from c2inet.options import Tunable, check_range, choose, require
+from c2inet.schedule import SCHEDULES, learning_rate, set_learning_rate
+from c2inet.selection import SELECTIONS, BestEpoch
 
 # wide enough that no tuned rate sat at a bound at batch 16 or 64 (docs/benchmark.md)
 TRAIN_SPACE = {"train.lr": Tunable(1e-4, 5e-2, log=True)}  # tuned for every method that trains
@@ -69,10 +72,26 @@ class TrainConfig:
     # a tuning trial's pruning: stop after task t when the average point-prediction error over
     # tasks 0..t (the objective so far) is above stop_above[t] (None or no entry: go on)
     stop_above: tuple[float | None, ...] = ()
+    # the learning rate within each task (c2inet.schedule): constant, cosine or linear from lr
+    # to lr * lr_final at the task's end, after `warmup` epochs rising linearly from 0
+    schedule: str = "constant"
+    warmup: float = 0.0
+    lr_final: float = 0.01
+    # the epoch a task keeps (c2inet.selection): its last, or the one of lowest best-of-select_k
+    # ADE on its own validation split
+    select: str = "last"
+    select_k: int = 20
+    # each epoch's scenes turned by random angles (c2inet.augment): none, or rotate
+    augment: str = "none"
 
     def __post_init__(self):
         check_device_name(self.device)
-        require(self, 0, "epochs", "seed", "val_every")
+        choose(self, "schedule", SCHEDULES)
+        choose(self, "select", SELECTIONS)
+        choose(self, "augment", AUGMENTATIONS)
+        require(self, 0, "epochs", "seed", "val_every", "warmup")
+        require(self, 0, "lr_final", high=1)
+        require(self, 1, "select_k")
         for bound in self.stop_above:
             if bound is not None:
                 check_range("stop_above", bound, 0, math.inf)
@@ -131,16 +150,26 @@ def train_step(
     return parts
 
 
-def train_epoch(method: Method, ctx: TaskContext, data: Windows, cfg: TrainConfig) -> dict:
-    """One pass over ``data`` in shuffled batches (:func:`train_step`); returns the mean of each
-    loss part over the steps."""
+def train_epoch(
+    method: Method, ctx: TaskContext, data: Windows, cfg: TrainConfig, epoch: int = 0
+) -> dict:
+    """One pass over ``data`` in shuffled batches (:func:`train_step`), epoch ``epoch`` of the
+    task, each step at its scheduled learning rate; returns the mean of each loss part over the
+    steps, and the rate of the last step (``lr``)."""
     totals: dict[str, float] = {}
-    steps = 0
+    steps, count = 0, math.ceil(len(data) / cfg.batch_scenes)
+    lr = cfg.lr
+    if cfg.augment == "rotate":
+        data = rotate_scenes(data, ctx.rng)
     for batch in batches(data, cfg.batch_scenes, ctx.rng, ctx.device):
+        if ctx.optimiser is not None:
+            elapsed = epoch + steps / count
+            lr = learning_rate(cfg.lr, cfg.schedule, elapsed, cfg.epochs, cfg.warmup, cfg.lr_final)
+            set_learning_rate(ctx.optimiser, lr)
         for key, value in train_step(method, ctx, batch, cfg).items():
             totals[key] = totals.get(key, 0.0) + value
         steps += 1
-    return {k: v / max(steps, 1) for k, v in totals.items()}
+    return {**{k: v / max(steps, 1) for k, v in totals.items()}, "lr": lr}
 
 
 class ContinualTrainer:
@@ -158,7 +187,8 @@ class ContinualTrainer:
     ):
         self.method, self.tasks, self.config = method, tasks, config
         self.checkpoint_dir = checkpoint_dir
-        self.identity = identity  # what the checkpoints belong to (the job, its options, its data)
+        # the task checkpoints, of this identity (the job, its options, its data)
+        self.store = CheckpointStore(checkpoint_dir, identity, len(tasks))
         self.observers = observers or []
         self.progress = progress or (lambda iterable, **_: iterable)
         self.history: list[dict[str, Any]] = []
@@ -199,7 +229,7 @@ class ContinualTrainer:
                 tests, values = [t.test for t in seen_tasks], [t.value for t in seen_tasks]
                 diagnosis = diagnose(model, tests, values, cfg.seed)
                 result.diagnostics.append({**diagnosis, **self._last_epoch(i)})
-            if self.checkpoint_dir is not None:
+            if self.store.folder is not None:
                 self._save(model, optimiser, rng, i, result)
             self._task_end(i, model, result)
         result.history = self.history
@@ -237,57 +267,13 @@ class ContinualTrainer:
             },
         )
 
-    def _checkpoint(self, index: int) -> Path:
-        return self.checkpoint_dir / f"task_{index:02d}.pt"
-
-    def checkpoints(self) -> list[Path]:
-        """The verified task checkpoints in ``checkpoint_dir``: task 0, 1, ... up to the first
-        one the manifest does not list (a kill between the two writes), each checked against
-        its SHA-256, and all of them against this trainer's ``identity``."""
-        if self.checkpoint_dir is None:
-            return []
-        paths = list(
-            itertools.takewhile(Path.exists, map(self._checkpoint, range(len(self.tasks))))
-        )
-        if not paths:
-            return []
-        if not (self.checkpoint_dir / MANIFEST).exists():
-            return []  # killed before its first manifest, or an earlier version's: retrain
-        manifest = self._manifest()
-        if manifest.get("identity") != self.identity:
-            raise InputError(
-                f"--resume: {self.checkpoint_dir} holds checkpoints of another job, other options "
-                "or other data; delete the folder to retrain that job, or use --overwrite"
-            )
-        listed = list(itertools.takewhile(lambda p: p.name in manifest["sha256"], paths))
-        for path in listed:
-            if file_digest(path) != manifest["sha256"][path.name]:
-                raise InputError(
-                    f"--resume: checkpoint {path} is damaged (its SHA-256 differs from the "
-                    "manifest's); delete it to retrain from the task before, or use --overwrite"
-                )
-        return listed
-
-    def _manifest(self) -> dict[str, Any]:
-        path = self.checkpoint_dir / MANIFEST
-        try:
-            manifest = json.loads(path.read_text())
-            if not isinstance(manifest, dict) or not isinstance(manifest.get("sha256"), dict):
-                raise ValueError("no sha256 table")
-        except (OSError, ValueError) as error:
-            raise InputError(
-                f"--resume: {path} is damaged ({type(error).__name__}); delete "
-                f"{self.checkpoint_dir} to retrain that job, or use --overwrite"
-            ) from None
-        return manifest
-
     def _replay(self, model, optimiser, rng: np.random.Generator, result: Result) -> int:
         """Restore the state after the last finished task and return the next task's index.
 
         Each finished task's events are sent again, with the model and method state of its own
         checkpoint, so observers (the recording) see what an uninterrupted run shows.
         """
-        paths = self.checkpoints()
+        paths = self.store.verified()
         for path in paths:
             state = load_checkpoint(path, model_device(model))
             try:
@@ -320,12 +306,22 @@ class ContinualTrainer:
         model.train()
         method.before_task(ctx)
         data = method.training_windows(ctx)
+        val = self.tasks[ctx.index].val
+        if cfg.select == "val" and val is None:
+            raise InputError(f"train.select=val: task {ctx.name} has no validation split")
+        best = BestEpoch()
         for epoch in self.progress(
             range(cfg.epochs), desc=f"{method.name} {ctx.name}", leave=False
         ):
-            losses = train_epoch(method, ctx, data, cfg)
+            losses = train_epoch(method, ctx, data, cfg, epoch)
             method.after_epoch(ctx, epoch)
             record = {"task": ctx.index, "epoch": epoch, **losses}
+            if cfg.select == "val":
+                score = evaluate(
+                    model, val, cfg.select_k, cfg.seed, cfg.eval_batch_scenes, point_draws=0
+                )["ade"]
+                record["select_ade"] = score
+                best.offer(score, epoch, model, ctx.optimiser, method)
             if cfg.val_every and (epoch + 1) % cfg.val_every == 0:
                 for seen in self.tasks[: ctx.index + 1]:
                     if seen.val is not None:
@@ -334,6 +330,9 @@ class ContinualTrainer:
                         )["ade"]
             self.history.append(record)
             self._notify("epoch_end", record)
+        if best.epoch is not None:
+            best.restore(model, ctx.optimiser, method)
+            self.history[-1]["selected_epoch"] = best.epoch
         method.after_task(ctx)
 
     def _save(self, model, optimiser, rng: np.random.Generator, index: int, result: Result):
@@ -352,30 +351,4 @@ class ContinualTrainer:
             "diagnostics": list(result.diagnostics),
             "history": list(self.history),
         }
-        path = self._checkpoint(index)
-        write_atomic(path, lambda tmp: torch.save(state, tmp))
-        fresh = index == 0 or not (self.checkpoint_dir / MANIFEST).exists()
-        digests = {} if fresh else self._manifest()["sha256"]
-        digests = {name: d for name, d in digests.items() if name < path.name}
-        manifest = {"identity": self.identity, "sha256": {**digests, path.name: file_digest(path)}}
-        write_text_atomic(self.checkpoint_dir / MANIFEST, json.dumps(manifest, indent=1) + "\n")
-
-
-MANIFEST = "manifest.json"  # beside the checkpoints: the job's identity and their SHA-256
-CHECKPOINT_KEYS = {"task", "model", "optimiser", "method", "torch_rng", "numpy_rng", "matrices"}
-
-
-def load_checkpoint(path: Path, device: torch.device | str = "cpu") -> dict[str, Any]:
-    """Read a task checkpoint safely (tensors and plain values only) onto ``device``; a damaged
-    or foreign one is one :class:`InputError` naming it and the way out."""
-    try:
-        state = torch.load(path, weights_only=True, map_location=device)
-        missing = CHECKPOINT_KEYS - set(state)
-    except Exception as error:  # torch raises many kinds for a damaged file
-        raise InputError(
-            f"--resume: checkpoint {path} is damaged ({type(error).__name__}); delete it to "
-            "retrain from the task before, or use --overwrite"
-        ) from None
-    if missing:
-        raise InputError(f"--resume: {path} is no checkpoint of this project (no {min(missing)})")
-    return state
+        self.store.save(index, state)

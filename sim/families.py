@@ -22,6 +22,7 @@ relative to that folder of the data root (``--data-root DIR`` or ``$C2I_DATA_ROO
 from __future__ import annotations
 
 import dataclasses
+import glob
 import os
 import re
 import sys
@@ -58,6 +59,34 @@ class Splits:
 
 
 @dataclass(frozen=True)
+class Windowing:
+    """How a family's scenes become learner windows (its ``[windows]`` table).
+
+    ``stride``: frames between the starts of two training windows (1 to 100). ``share``: the
+    first share of the training windows, in the recording's order, in (0, 1] (the first tenth is
+    0.1). ``min_agents``: windows with fewer agents present throughout are dropped, in every
+    split (2 is sgan's protocol, which drops lone agents). ``val_share``: for a family without
+    validation files, the last share of the training windows, in the recording's order, held out
+    as the validation split (the windows overlapping it dropped from training), in [0, 0.5].
+    """
+
+    stride: int = 1
+    share: float = 1.0
+    min_agents: int = 1
+    val_share: float = 0.0
+
+    def __post_init__(self):
+        if not 1 <= self.stride <= 100:
+            raise InputError(f"windows.stride={self.stride!r}: expected an integer in [1, 100]")
+        if not 0 < self.share <= 1:
+            raise InputError(f"windows.share={self.share!r}: expected a number in (0, 1]")
+        if not 1 <= self.min_agents <= 100:
+            raise InputError(f"windows.min_agents={self.min_agents!r}: expected 1 to 100")
+        if not 0 <= self.val_share <= 0.5:
+            raise InputError(f"windows.val_share={self.val_share!r}: expected a number in [0, 0.5]")
+
+
+@dataclass(frozen=True)
 class Family:
     """A parsed family file."""
 
@@ -71,10 +100,18 @@ class Family:
     splits: Splits = Splits()
     values: dict[str, dict[str, Any]] = field(default_factory=dict)
     unit: str = "m"  # of the positions: metres, or pixels (a recording not yet scaled)
-    stride: int = 1  # frames between the starts of two training windows of a scene
-    share: float = 1.0  # the first share of its training windows, in the recording's order
+    windowing: Windowing = Windowing()  # how its scenes become windows
+    train: dict[str, Any] = field(default_factory=dict)  # the learner's defaults ([train])
     data_root: str = ""  # the data root's folder its files are relative to ("": its own folder)
     download: str = ""  # what to put in that folder, and where to get it
+
+    @property
+    def stride(self) -> int:
+        return self.windowing.stride
+
+    @property
+    def share(self) -> float:
+        return self.windowing.share
 
     @property
     def value_names(self) -> tuple[str, ...]:
@@ -95,23 +132,53 @@ class Family:
         except InputError as error:
             if not self.data_root:
                 raise
-            raise InputError(f"family {self.name}: {error} (expected {self.download})") from None
+            hint = self.other_format(folder)
+            raise InputError(
+                f"family {self.name}: {error} (expected {self.download}){hint}"
+            ) from None
 
     def files_dir(self) -> Path:
         """The folder the family's file patterns are relative to: its TOML's, or its dataset's
-        folder in the data root, which must exist (else one line says what to put there)."""
+        folder: ``DATA_ROOT/<data_root>``, or else the data root itself where it is that
+        dataset's folder (its files are there). Else one line says what to put there, and which
+        family reads a folder that holds another dataset's layout."""
         if not self.data_root:
             return self.path.parent
         root = os.environ.get(DATA_ROOT_ENV, "")
-        folder = Path(root).expanduser() / self.data_root
-        if not root or not folder.is_dir():
-            where = f"{folder}" if root else f"DATA_ROOT/{self.data_root}"
-            given = "" if root else f" (give --data-root DATA_ROOT or set ${DATA_ROOT_ENV})"
-            raise InputError(f"family {self.name}: reads {self.download} from {where}{given}")
-        return folder
+        given = Path(root).expanduser()
+        if root and (given / self.data_root).is_dir():
+            return given / self.data_root
+        if root and given.is_dir() and self.holds_files(given):
+            return given  # --data-root named the dataset's own folder
+        where = f"{given / self.data_root}" if root else f"DATA_ROOT/{self.data_root}"
+        hint = (
+            self.other_format(given)
+            if root
+            else f" (give --data-root DATA_ROOT or set ${DATA_ROOT_ENV})"
+        )
+        raise InputError(f"family {self.name}: reads {self.download} from {where}{hint}")
+
+    def other_format(self, folder: Path) -> str:
+        """A hint where ``folder`` holds the files another dataset family reads ("" if none)."""
+        for name, family in _dataset_families().items():
+            held = (folder / family.data_root, folder)
+            if name != self.name and any(family.holds_files(f) for f in held):
+                return f"; {folder} holds what family {name} reads"
+        return ""
+
+    def holds_files(self, folder: Path) -> bool:
+        """Whether ``folder`` holds a file of the first training pattern of any value."""
+        patterns = [p for v in self.values.values() for p in v.get("train", [])[:1]]
+        return any(isinstance(p, str) and glob.glob(str(folder / p)) for p in patterns)
 
 
 _noticed: set[Path] = set()  # built-in families replaced by a user's copy, said once
+
+
+def _dataset_families() -> dict[str, Family]:
+    """The built-in families that read a dataset from the data root."""
+    families = {path.stem: load_family(path) for path in sorted(SCENARIOS_DIR.glob("*.toml"))}
+    return {name: family for name, family in families.items() if family.data_root}
 
 
 def available_families(extra_dirs: list[Path]) -> dict[str, Path]:
@@ -139,7 +206,7 @@ def available_families(extra_dirs: list[Path]) -> dict[str, Path]:
 MAX_FAMILY_BYTES = 1_000_000
 VALUE_NAME = r"[a-z0-9][a-z0-9_-]*(\.[a-z0-9_-]+)*"  # e.g. "univ", "0.1": safe in file names
 _FAMILY_KEYS = {"description", "generator", "knob", "seed_offset", "knobs", "splits", "values"}
-_FAMILY_KEYS |= {"unit", "windows", "data_root", "download"}
+_FAMILY_KEYS |= {"unit", "windows", "train", "data_root", "download"}
 UNITS = {"m": "metres", "px": "pixels"}  # what a family's positions are in
 
 
@@ -151,19 +218,9 @@ def toml_table(raw: dict, key: str, path: Path) -> dict:
     return value
 
 
-def window_options(table: dict[str, Any], where: str) -> tuple[int, float]:
-    """The ``[windows]`` table's training-window ``stride`` (1 to 100 frames; 1 when absent)
-    and ``share`` (the first share of the training windows, in the recording's order, in
-    (0, 1]; 1 when absent: the first tenth is ``share = 0.1``)."""
-    unknown = sorted(set(table) - {"stride", "share"})
-    if unknown:
-        raise InputError(f"{where}: [windows] {unknown[0]!r}: only 'stride' and 'share' are known")
-    stride, share = table.get("stride", 1), table.get("share", 1.0)
-    if isinstance(stride, bool) or not isinstance(stride, int) or not 1 <= stride <= 100:
-        raise InputError(f"{where}: windows.stride={stride!r}: expected an integer in [1, 100]")
-    if isinstance(share, bool) or not isinstance(share, int | float) or not 0 < share <= 1:
-        raise InputError(f"{where}: windows.share={share!r}: expected a number in (0, 1]")
-    return stride, float(share)
+def window_options(table: dict[str, Any], where: str, base: Windowing | None = None) -> Windowing:
+    """The ``[windows]`` table (or ``--set data.windows.*``) over ``base``, checked."""
+    return build(Windowing, {**vars(base or Windowing()), **table}, f"{where} [windows]")
 
 
 def _read_toml(path: Path) -> dict[str, Any]:
@@ -205,7 +262,7 @@ def load_family(path: Path) -> Family:
     for name, table in values.items():
         if not re.fullmatch(VALUE_NAME, name) or not isinstance(table, dict):
             raise InputError(f"{path}: bad value table {name!r}")
-    stride, share = window_options(toml_table(raw, "windows", path), str(path))
+    windowing = window_options(toml_table(raw, "windows", path), str(path))
     unit = raw.get("unit", "m")
     if unit not in UNITS:
         raise InputError(f"{path}: unit {unit!r}: expected one of {', '.join(UNITS)}")
@@ -228,8 +285,8 @@ def load_family(path: Path) -> Family:
         splits=build(Splits, toml_table(raw, "splits", path), f"{path} [splits]"),
         values=values,
         unit=unit,
-        stride=stride,
-        share=share,
+        windowing=windowing,
+        train=toml_table(raw, "train", path),
         data_root=data_root,
         download=str(download),
     )

@@ -128,7 +128,14 @@ def main(argv: list[str] | None = None) -> int:
     settings = parse_settings(args.set)
     for scope in set(settings) - {"data"}:
         raise InputError(f"--set {scope}.*: generate takes only data.KNOB=VALUE")
-    curriculum = parse_scenario(args.scenario, args.scenarios_dir, settings.get("data"))
+    # a --config file's [settings.data] as sim.run reads it, under the flags; its learner's
+    # scopes are not generate's, and said so
+    data = {**args.config_settings.get("data", {}), **settings.get("data", {})}
+    others = sorted(set(args.config_settings) - {"data"})
+    if others:
+        print(f"note: --config: generate takes its data settings, not {', '.join(others)}",
+              file=sys.stderr)  # fmt: skip
+    curriculum = parse_scenario(args.scenario, args.scenarios_dir, data)
     clear_output(args.out, args.overwrite)
     writable_folder(args.out, "--out")
     domains, written = [], {}

@@ -118,8 +118,8 @@ def _split_family(part: str, families: dict[str, Path]) -> tuple[str, str]:
 
 
 def with_overrides(family: Family, overrides: dict[str, Any]) -> Family:
-    """``family`` with knob defaults, split sizes (``splits.NAME`` keys) and the training
-    windows' stride and share (``windows.stride``, ``windows.share``) replaced."""
+    """``family`` with knob defaults, split sizes (``splits.NAME`` keys) and how its scenes are
+    cut into windows (``windows.stride``, ``.share``, ``.min_agents``, ``.val_share``) replaced."""
     if not overrides:
         return family
 
@@ -134,10 +134,9 @@ def with_overrides(family: Family, overrides: dict[str, Any]) -> Family:
     if unknown:
         raise InputError(f"--set data.splits.{unknown[0]}: expected splits.train, .val or .test")
     sizes = build(Splits, {**vars(family.splits), **splits}, "--set data.splits")
-    table = {"stride": family.stride, "share": family.share, **windows}
-    stride, share = window_options(table, "--set data")
+    windowing = window_options(windows, "--set data", family.windowing)
     defaults = {**family.defaults, **knobs}
-    return replace(family, defaults=defaults, splits=sizes, stride=stride, share=share)
+    return replace(family, defaults=defaults, splits=sizes, windowing=windowing)
 
 
 def parse_scenario(

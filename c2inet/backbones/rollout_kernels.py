@@ -19,6 +19,8 @@ import numpy as np
 import torch
 from numba import njit
 
+from c2inet import jit
+
 _F = np.float32
 _CLAMP = _F(7.90531110763549805)  # inputs held here; beyond it tanh is within 5 ulp of tanh32(it)
 # the odd numerator's and the even denominator's coefficients, highest power first
@@ -43,8 +45,9 @@ def compiled(tensor: torch.Tensor) -> bool:
     return COMPILED and tensor.device.type == "cpu" and tensor.dtype == torch.float32
 
 
-# every kernel: cached beside the module, vectorised with fast math, run without the GIL
-NUMBA_OPTIONS = {"cache": True, "fastmath": True, "nogil": True, "error_model": "numpy"}
+# every kernel: cached where a cache can be written (c2inet.jit), vectorised with fast math,
+# run without the GIL
+NUMBA_OPTIONS = jit.options(fastmath=True, nogil=True, error_model="numpy")
 
 
 @njit(inline="always", **NUMBA_OPTIONS)

@@ -86,11 +86,12 @@ class Method:
     # options by name, shared scopes as ``model.KEY``; every method gets the same trials
     search_space: ClassVar[dict[str, Tunable | Choice]] = {}
 
-    def __init_subclass__(cls, register: bool = True, **kwargs):
-        """Defining a subclass registers it under its name (``register=False``: not)."""
+    def __init_subclass__(cls, **kwargs):
+        """A subclass defined in ``c2inet.methods`` registers under its own name; one defined
+        elsewhere never registers itself (``Registry.enrol``): a plugin comes in through its
+        entry point, and cannot replace a built-in."""
         super().__init_subclass__(**kwargs)
-        if register:
-            METHODS[cls.name] = cls
+        REGISTRY.enrol(cls)
 
     def __init__(self, model_config: ModelConfig, options: dict[str, Any] | None = None):
         self.model_config = model_config

@@ -61,10 +61,12 @@ class ExperimentConfig:
         fill = object.__setattr__  # the resolved defaults belong to the frozen configuration
         fill(self, "methods", tuple(self.methods))
         fill(self, "scenarios_dir", tuple(Path(p) for p in self.scenarios_dir))
-        fill(self, "epochs", self.epochs if self.epochs is not None else (2 if self.quick else 20))
-        fill(self, "k", self.k if self.k is not None else (5 if self.quick else 20))
         if not self.specs:  # parsed here, once: a bad scenario or data override fails now
             raise InputError(f"scenario {self.scenario!r}: no domain")
+        family = self.family_train
+        epochs, k = (2, 5) if self.quick else (family.get("epochs", 20), family.get("k", 20))
+        fill(self, "epochs", self.epochs if self.epochs is not None else epochs)
+        fill(self, "k", self.k if self.k is not None else k)
         self.unit  # noqa: B018  (refuses a curriculum that mixes metres and pixels, now)
         if not self.methods:
             raise InputError("methods: no method named")
@@ -105,6 +107,21 @@ class ExperimentConfig:
         once per configuration)."""
         return parse_scenario(self.scenario, list(self.scenarios_dir), self.settings.get("data"))
 
+    @cached_property
+    def family_train(self) -> dict[str, Any]:
+        """The learner's defaults the curriculum's families set (their ``[train]`` tables: the
+        reproduction's schedule and sizes, say), under ``--set train.*`` and the flags; the
+        families of one curriculum must agree on them."""
+        tables = {spec.family.name: spec.family.train for spec in self.specs}
+        (first_name, first), *_ = tables.items()
+        for name, table in tables.items():
+            if table != first:
+                raise InputError(
+                    f"scenario {self.scenario!r}: families {first_name!r} and {name!r} set "
+                    "different [train] defaults; run them apart, or give every option by --set"
+                )
+        return dict(first)
+
     @property
     def unit(self) -> str:
         """What the curriculum's positions, so its errors, are in: ``m`` or ``px``; a curriculum
@@ -124,7 +141,8 @@ class ExperimentConfig:
 
     def train_config(self, seed_index: int = 0) -> TrainConfig:
         """The trainer's options of the job with seed ``seed_index`` (its own seed)."""
-        train = {**self.settings.get("train", {}), "epochs": self.epochs, "k": self.k}
+        family = {k: v for k, v in self.family_train.items() if k not in ("epochs", "k")}
+        train = {**family, **self.settings.get("train", {}), "epochs": self.epochs, "k": self.k}
         train["device"] = self.device
         return build(TrainConfig, {**train, "seed": self.seed + seed_index}, "train")
 

@@ -6,6 +6,7 @@ tasks; ``make_showcases`` picks what the recording draws of each task.
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,7 +20,7 @@ from c2inet.trainer import Task
 from sim.data import SPLITS, cut_windows, window_members
 from sim.domains import build_domain, cache_path, rollout_scene
 from sim.experiment.config import Execution, ExperimentConfig
-from sim.families import Splits
+from sim.families import Splits, Windowing
 from sim.generators import Generator, get_generator
 from sim.progress import progress_bar
 from sim.scenario import DomainSpec, parse_scenario
@@ -91,20 +92,43 @@ def make_tasks(
     tasks, domains = [], []
     for spec in progress_bar(specs, desc="domains", unit="domain", transient=True):
         domain = build_domain(spec, seed, cache, _splits(spec, quick), workers, memory_budget)
-        splits = {}
-        for split in SPLITS:  # training windows as the family says, the others all
-            family, train = spec.family, split == "train"
-            stride, share = (family.stride, family.share) if train else (1, 1.0)
-            windows = domain.windows(split, stride, share)
-            if windows is not None and quick and len(windows) > QUICK_WINDOWS:
-                windows = windows.subset(np.arange(QUICK_WINDOWS))
-            splits[split] = windows
+        splits = domain_windows(domain, spec.family.windowing)
+        if quick:
+            splits = {k: _first(w, QUICK_WINDOWS) for k, w in splits.items()}
         if splits["train"] is None or splits["test"] is None:
             raise InputError(f"domain {domain.name}: no 20-frame window in its train or test split")
         value = spec.value if isinstance(spec.value, int | float) else None
         tasks.append(Task(domain.name, splits["train"], splits["val"], splits["test"], value))
         domains.append(domain)
     return tasks, domains
+
+
+def domain_windows(domain, windowing: Windowing) -> dict[str, Windows | None]:
+    """A domain's windows per split as its family's ``[windows]`` table says: training windows
+    every ``stride`` frames, their first ``share``; every split without windows of fewer than
+    ``min_agents`` agents; and, where the domain has no validation split and ``val_share`` > 0,
+    the training windows' last ``val_share`` held out as one (the windows that share frames
+    with it dropped from training, so that no validation frame is trained on)."""
+    keep = windowing.min_agents
+    splits = {split: domain.windows(split, 1, 1.0, keep) for split in SPLITS}
+    train = domain.windows("train", windowing.stride, windowing.share, keep)
+    if splits["val"] is None and windowing.val_share > 0 and splits["train"] is not None:
+        every = splits["train"]
+        cut = len(every) - math.ceil(windowing.val_share * len(every))
+        splits["val"] = every.subset(np.arange(cut, len(every)))
+        gap = max(cut - (OBS_LEN + PRED_LEN - 1), 0)  # a window shares frames with the 19 before
+        train = every.subset(np.arange(0, gap, windowing.stride))
+        if windowing.share < 1:
+            train = train.subset(np.arange(math.ceil(windowing.share * len(train))))
+    splits["train"] = train
+    return splits
+
+
+def _first(windows: Windows | None, count: int) -> Windows | None:
+    """At most the first ``count`` of ``windows``."""
+    if windows is None or len(windows) <= count:
+        return windows
+    return windows.subset(np.arange(count))
 
 
 def make_showcases(specs: list[DomainSpec], tasks: list[Task], seed: int) -> tuple[list, dict]:

@@ -221,6 +221,7 @@ def job_identity(job: Job, config: ExperimentConfig, inputs: JobInputs) -> str:
     configuration and every task's data. Its checkpoints and result carry it, so a resume
     never mixes in the work of another job, other options or changed data files."""
     what = {"job": [job.method, job.seed_index], "config": config.to_json()}
+    what["train"] = vars(config.train_config(job.seed_index))  # a family's [train] table too
     digest = hashlib.sha256(json.dumps(what, sort_keys=True, default=str).encode())
     for task in inputs.tasks:
         digest.update(task.name.encode())

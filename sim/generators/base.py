@@ -39,11 +39,12 @@ class Generator:
     quick_splits: ClassVar[tuple[int, int, int]] = (12, 4, 6)  # train/val/test for smoke runs
     seeded: ClassVar[bool] = True  # False: the same domain whatever the seed (recordings)
 
-    def __init_subclass__(cls, register: bool = True, **kwargs):
-        """Defining a subclass registers it under its name (``register=False``: not)."""
+    def __init_subclass__(cls, **kwargs):
+        """A subclass defined in ``sim.generators`` registers under its own name; one defined
+        elsewhere never registers itself (``Registry.enrol``): a plugin comes in through its
+        entry point, and cannot replace a built-in."""
         super().__init_subclass__(**kwargs)
-        if register:
-            REGISTRY.entries[cls.name] = cls
+        REGISTRY.enrol(cls)
 
     @classmethod
     def resolve(cls, knobs: Any, base_dir: Path) -> dict[str, Any]:

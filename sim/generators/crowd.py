@@ -24,6 +24,7 @@ import pymunk.batch
 from numba import njit
 
 from c2inet.errors import InputError
+from c2inet.jit import options as jit_options
 from c2inet.options import check_range
 from sim.data import SPLITS, Domain, Scene
 from sim.generators.base import Generator, child_seed
@@ -182,7 +183,7 @@ def _on_ring(knobs: CrowdKnobs, rng: np.random.Generator, angles: np.ndarray) ->
     return distance * np.stack([np.cos(angles), np.sin(angles)], axis=1)
 
 
-@njit(cache=True)
+@njit(**jit_options())
 def spaced_subset(points: np.ndarray, gap: float, limit: int) -> np.ndarray:
     """Indices of the first ``limit`` points, in order, that are ``gap`` clear of those before."""
     chosen = np.empty(limit, np.int64)

@@ -19,7 +19,10 @@ import numpy as np
 from numba import njit
 from scipy.spatial import cKDTree
 
+from c2inet.jit import options
 from sim.generators.orca import orca_velocities
+
+CACHED = options()  # cached where a cache can be written (c2inet.jit)
 
 # Karamouzas et al. 2014 values, metres and seconds.
 RELAXATION = 0.5  # s, time to reach the preferred velocity
@@ -79,7 +82,7 @@ def orca_neighbours(positions: np.ndarray) -> np.ndarray:
     return index.reshape(len(positions), k)
 
 
-@njit(cache=True)
+@njit(**CACHED)
 def _steer(state, goal, speed, noise, kicks, scene_size, contact, dt, max_speed, decay, kick):
     """``Controller.steer`` with the time-to-collision controller, compiled."""
     # Pairs that can touch by the end of the next step: contact plus two steps of closing.
@@ -105,7 +108,7 @@ def _steer(state, goal, speed, noise, kicks, scene_size, contact, dt, max_speed,
     return _accelerations(state, velocity, dt)
 
 
-@njit(cache=True)
+@njit(**CACHED)
 def _steer_orca(state, ahead, goal, speed, noise, kicks, neighbours, scene_size, constants):
     """``Controller.steer`` with ORCA, compiled. ORCA sees each agent ``ahead``, where its
     current velocity takes it within this step, because Chipmunk moves a body before it applies
@@ -124,7 +127,7 @@ def _steer_orca(state, ahead, goal, speed, noise, kicks, neighbours, scene_size,
     return _accelerations(state, velocity, dt)
 
 
-@njit(cache=True)
+@njit(**CACHED)
 def _preferred(state, goal, speed, noise, kicks, decay, kick) -> np.ndarray:
     """Preferred velocities: towards the goal at the agent's speed (slowing within
     ``SLOW_DOWN`` of it) plus its OU noise, which the standard normal ``kicks`` advance in place."""
@@ -139,7 +142,7 @@ def _preferred(state, goal, speed, noise, kicks, decay, kick) -> np.ndarray:
     return preferred
 
 
-@njit(cache=True)
+@njit(**CACHED)
 def _accelerations(state, velocity, dt) -> np.ndarray:
     """Accelerations that take every agent from its velocity in ``state`` to ``velocity`` in
     one step."""
@@ -150,7 +153,7 @@ def _accelerations(state, velocity, dt) -> np.ndarray:
     return accel
 
 
-@njit(cache=True)
+@njit(**CACHED)
 def neighbour_pairs(state: np.ndarray, scene_size: int, cutoff: float) -> np.ndarray:
     """Pairs of agents of the same scene whose centres are closer than ``cutoff``, shape (m, 2).
 
@@ -164,7 +167,7 @@ def neighbour_pairs(state: np.ndarray, scene_size: int, cutoff: float) -> np.nda
     return pairs
 
 
-@njit(cache=True)
+@njit(**CACHED)
 def _visit_pairs(state, scene_size, sensing, keep, pairs, accel, aim) -> int:
     """Visit the pairs of same-scene agents and return how many are closer than ``keep``.
 
@@ -223,7 +226,7 @@ def _visit_pairs(state, scene_size, sensing, keep, pairs, accel, aim) -> int:
     return found
 
 
-@njit(cache=True, inline="always")
+@njit(**CACHED, inline="always")
 def _avoid(state: np.ndarray, accel: np.ndarray, i: int, j: int, aim: float) -> None:
     """Add the time-to-collision power-law accelerations of agents i and j (Karamouzas 2014)."""
     x0, x1 = state[i, 0] - state[j, 0], state[i, 1] - state[j, 1]
@@ -252,7 +255,7 @@ def _avoid(state: np.ndarray, accel: np.ndarray, i: int, j: int, aim: float) -> 
     accel[j, 1] -= f1
 
 
-@njit(cache=True)
+@njit(**CACHED)
 def hold_apart(ahead, velocity, pairs, contact, dt, lane) -> None:
     """Change velocities, in place, so that no pair ends the step from ``ahead`` closer than
     ``contact`` (each agent of a pair takes half of the missing distance) and no centre ends it
@@ -286,7 +289,7 @@ def hold_apart(ahead, velocity, pairs, contact, dt, lane) -> None:
             return
 
 
-@njit(cache=True)
+@njit(**CACHED)
 def speculative_contacts(state, velocity, pairs, contact, dt) -> None:
     """Slow approaching pairs, in place, so that no pair closes past contact within the next step.
 

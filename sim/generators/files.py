@@ -54,6 +54,10 @@ class FilesKnobs:
     scales: str = ""  # sdd: a YAML of every video's metres per pixel (OpenTraj's), over scale
     every: int = 1  # keep the frames whose id is a multiple (12: SDD's 30 fps as 2.5 fps)
     labels: tuple[str, ...] = ("Pedestrian",)  # sdd: the classes kept (Biker, Cart, Car...)
+    # refuse a recording whose mean speed is above this (units a second): a family in metres
+    # given pixels (SDD's raw coordinates) reads 10 to 100 times faster than people walk
+    # (0: no check)
+    max_speed: float = 0.0
 
     def __post_init__(self):
         if not self.train or not self.test:
@@ -61,6 +65,7 @@ class FilesKnobs:
         check_range("dt", self.dt, 0, 10, open_low=True)
         check_range("scale", self.scale, 0, 1e3, open_low=True)
         check_range("every", self.every, 1, 1000)
+        check_range("max_speed", self.max_speed, 0, 1e6)
         if self.format not in FORMATS:
             raise InputError(f"format {self.format!r}: expected one of {', '.join(FORMATS)}")
         if self.scales and self.format != "sdd":
@@ -280,7 +285,7 @@ class FilesGenerator(Generator):
         """The knobs with each pattern's files; the reading options only where they differ
         from ETH-UCY's, so an ETH-UCY domain keeps its cache key."""
         out: dict[str, Any] = {"dt": knobs.dt, "split_gaps": knobs.split_gaps}
-        for key in ("format", "scale", "every", "labels"):
+        for key in ("format", "scale", "every", "labels", "max_speed"):
             if getattr(knobs, key) != getattr(FilesKnobs, key):
                 out[key] = getattr(knobs, key)
         for split in SPLITS:
@@ -322,6 +327,13 @@ class FilesGenerator(Generator):
         }
         everything = [s for split in SPLITS for s in scenes[split]]
         stats = motion_stats(everything, knobs["dt"])
+        limit = knobs.get("max_speed", 0.0)
+        if limit and stats["mean_speed"] > limit:
+            raise InputError(
+                f"domain {name}: its agents move at {stats['mean_speed']:.3g} units/s on average, "
+                f"above the {limit:g} m/s a recording in metres can hold: are its coordinates "
+                "pixels? (the family reads metres; sdd_px reads SDD's pixels)"
+            )
         stats.update(proximity_stats(everything))  # no overlaps: recorded people have no radius
         stats["density"] = _density(everything)
         return Domain(name, family, self.name, knobs, knobs["dt"], scenes, stats)

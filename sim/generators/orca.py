@@ -16,10 +16,14 @@ import math
 import numpy as np
 from numba import njit
 
+from c2inet.jit import options
+
+CACHED = options()  # cached where a cache can be written (c2inet.jit)
+
 EPSILON = 1e-5  # RVO2's RVO_EPSILON: lines this close to parallel are treated as parallel
 
 
-@njit(cache=True)
+@njit(**CACHED)
 def orca_velocities(
     state: np.ndarray,
     preferred: np.ndarray,
@@ -54,7 +58,7 @@ def orca_velocities(
     return out
 
 
-@njit(cache=True)
+@njit(**CACHED)
 def _orca_line(state, i, j, contact, horizon, dt, line) -> None:
     """The half-plane of velocities that agent j leaves agent i (its share of the avoidance)."""
     px, py = state[j, 0] - state[i, 0], state[j, 1] - state[i, 1]
@@ -94,12 +98,12 @@ def _orca_line(state, i, j, contact, horizon, dt, line) -> None:
     line[1] = state[i, 3] + 0.5 * uy
 
 
-@njit(cache=True)
+@njit(**CACHED)
 def _det(ax, ay, bx, by) -> float:
     return ax * by - ay * bx
 
 
-@njit(cache=True)
+@njit(**CACHED)
 def _program1(lines, k, radius, opt_x, opt_y, direction_opt, result) -> bool:
     """Best point on line k within the speed disc and the lines before k; False if none."""
     px, py, dx, dy = lines[k, 0], lines[k, 1], lines[k, 2], lines[k, 3]
@@ -131,7 +135,7 @@ def _program1(lines, k, radius, opt_x, opt_y, direction_opt, result) -> bool:
     return True
 
 
-@njit(cache=True)
+@njit(**CACHED)
 def _program2(lines, radius, opt_x, opt_y, direction_opt, result) -> int:
     """The velocity in the speed disc and every line closest to ``opt`` (or furthest along it
     with ``direction_opt``); returns the first line it fails on, or ``len(lines)``."""
@@ -151,7 +155,7 @@ def _program2(lines, radius, opt_x, opt_y, direction_opt, result) -> int:
     return len(lines)
 
 
-@njit(cache=True)
+@njit(**CACHED)
 def _program3(lines, begin, radius, result) -> None:
     """When the lines leave no velocity: the one that violates them least (in place)."""
     distance = 0.0

@@ -8,7 +8,7 @@ Example: ``--methods shrinking``, once a package declaring the entry point is in
 from c2inet.methods.finetune import Finetune
 
 
-class Shrinking(Finetune, register=False):
+class Shrinking(Finetune):
     """Fine-tuning whose learning rate halves at every new task (``before_task``)."""
 
     name = "shrinking"
@@ -20,23 +20,29 @@ class Shrinking(Finetune, register=False):
                 group["lr"] *= 0.5
 
 
-class Impostor(Finetune, register=False):
+class ShrinkingTwin(Shrinking):
+    """A second plugin that claims the first plugin's name."""
+
+    name = "shrinking"
+
+
+class Impostor(Finetune):
     """Fine-tuning's subclass without a name of its own: it must not pass as ``finetune``."""
 
 
-class Taker(Finetune, register=False):
+class Taker(Finetune):
     """A plugin that claims a built-in's name."""
 
     name = "finetune"
 
 
-class Escaper(Finetune, register=False):
+class Escaper(Finetune):
     """A plugin whose name would be a path out of ``--out``."""
 
     name = "../../escaped"
 
 
-class Undocumented(Finetune, register=False):
+class Undocumented(Finetune):
     name = "undocumented"
 
 

@@ -37,7 +37,7 @@ def test_the_paper_baselines_and_the_staples_are_registered():
     assert paper | staples | {"finetune", "joint", "cv", "c2inet-online"} <= set(METHODS)
 
 
-class InertLwF(LwF, register=False):
+class InertLwF(LwF):
     """LwF whose distillation never runs."""
 
     name = "test-inert-lwf"
@@ -46,7 +46,7 @@ class InertLwF(LwF, register=False):
         pass
 
 
-class Forgetful(SI, register=False):
+class Forgetful(SI):
     """SI that saves nothing between tasks: a resumed run loses its importance."""
 
     name = "test-forgetful-si"
@@ -58,7 +58,7 @@ class Forgetful(SI, register=False):
         pass
 
 
-class Noisy(Finetune, register=False):
+class Noisy(Finetune):
     """Fine-tuning with a term drawn from the operating system's randomness."""
 
     name = "test-noisy"
@@ -67,7 +67,7 @@ class Noisy(Finetune, register=False):
         ctx.add_loss("noise", 1e-3 * random.SystemRandom().random() * ctx.loss)
 
 
-class DeviceBound(Finetune, register=False):
+class DeviceBound(Finetune):
     """Fine-tuning with a penalty made on the default device, not the model's: on a GPU it fails
     (a CPU tensor added to a GPU loss), so the checker must catch it on the CPU too."""
 
@@ -77,7 +77,7 @@ class DeviceBound(Finetune, register=False):
         ctx.add_loss("penalty", torch.zeros(()))
 
 
-class Undocumented(EWC, register=False):
+class Undocumented(EWC):
     """EWC with an extra hook its module's docstring does not name."""
 
     name = "test-undocumented"
@@ -86,14 +86,14 @@ class Undocumented(EWC, register=False):
         pass
 
 
-class MisTuned(EWC, register=False):
+class MisTuned(EWC):
     """EWC whose searched range leaves out its default, and names an option it lacks."""
 
     name = "test-mistuned"
     search_space = {"strength": Tunable(1e5, 1e6, log=True)}
 
 
-class Misspelt(EWC, register=False):
+class Misspelt(EWC):
     """EWC that searches a model option no model has."""
 
     name = "test-misspelt"
@@ -193,6 +193,33 @@ def test_a_plugin_cannot_take_a_built_ins_name_or_a_name_that_is_a_path(
     methods = discover()
     assert methods["finetune"] is Finetune and "../../escaped" not in methods
     assert why in capsys.readouterr().err
+
+
+def test_a_plugin_named_like_a_built_in_never_replaces_it_and_a_good_one_warns_nothing(
+    monkeypatch, capsys, methods_registry, tmp_path
+):
+    """Issue 64's case: a plugin ``finetune`` (importing its module defines a class of that
+    name) is one warning, and ``--methods finetune`` runs the built-in; a second plugin of a
+    name already taken by a plugin is one warning too; a plugin written as the docs say loads
+    and runs without a word (issue 65's false warning)."""
+    from sim.run import main
+
+    entries = [
+        EntryPoint("shrinking", "plugin_method:Shrinking", PLUGINS),
+        EntryPoint("finetune", "plugin_method:Taker", PLUGINS),
+        EntryPoint("shrinking2", "plugin_method:Shrinking", PLUGINS),
+        EntryPoint("twin", "plugin_method:ShrinkingTwin", PLUGINS),
+    ]
+    ours = lambda group=None, **_: entries if group == PLUGINS else []  # noqa: E731
+    monkeypatch.setattr(importlib.metadata, "entry_points", ours)
+    argv = ["--scenario", "crowd_noise_0.1", "--methods", "finetune,shrinking", "--quick"]
+    assert main([*argv, "--no-record", "--out", str(tmp_path / "run")]) == 0
+    err = [line for line in capsys.readouterr().err.splitlines() if "skipped" in line]
+    assert len(err) == 2, err
+    assert "'finetune' skipped: its name 'finetune' is a built-in method's" in err[0]
+    assert "'twin' skipped: its name 'shrinking' is another plugin's method's" in err[1]
+    assert get_method("finetune") is Finetune
+    assert get_method("shrinking").__module__ == "plugin_method"
 
 
 def test_a_plugin_that_exits_at_import_or_has_no_docstring_ends_no_command(

@@ -10,7 +10,7 @@ from sim.studies.benchmark.presets import Preset
 from viz.loggers import Logger
 
 
-class SeedlessCrowd(CrowdGenerator, register=False):
+class SeedlessCrowd(CrowdGenerator):
     """Crowds that ignore their seed: a plugin the generator checker must fail."""
 
     name = "seedless-crowd"

@@ -80,6 +80,27 @@ def test_generate_takes_data_settings_and_refuses_other_scopes(tmp_path, family_
     assert done.returncode == 2 and "generate takes only data.KNOB" in done.stderr
 
 
+def test_generate_reads_a_config_files_data_settings_as_run_does(tmp_path):
+    """Issue 64's case: a file with ``agents = 3`` and small splits under ``[settings.data]``
+    generates 3 agents and those splits (it had generated 10 and 300/50/100); the flags win
+    over the file, and its learner's scopes are named as not generate's."""
+    config = tmp_path / "gen.toml"
+    config.write_text(
+        'scenario = "crowd_noise_0.1"\n[settings.data]\nagents = 3\n"splits.train" = 4\n'
+        '"splits.val" = 2\n"splits.test" = 3\n[settings.train]\nlr = 0.001\n'
+    )
+    done = run_generate("--config", str(config), "--out", str(tmp_path / "a"))
+    assert done.returncode == 0, done.stderr
+    (domain,) = json.loads((tmp_path / "a" / "summary.json").read_text())["domains"]
+    assert domain["knobs"]["agents"] == 3
+    assert domain["splits"] == {"train": 4, "val": 2, "test": 3}
+    assert "generate takes its data settings, not train" in done.stderr
+    out = str(tmp_path / "b")
+    done = run_generate("--config", str(config), "--out", out, "--set", "data.agents=4")
+    (domain,) = json.loads((tmp_path / "b" / "summary.json").read_text())["domains"]
+    assert domain["knobs"]["agents"] == 4 and domain["splits"]["train"] == 4
+
+
 @pytest.mark.parametrize("fmt", ["parquet", "npz"])
 def test_generate_never_overwrites_silently_and_replaces_only_its_own_files(
     tmp_path, family_dir, fmt, capsys

@@ -426,7 +426,7 @@ def test_a_job_identity_follows_its_data_options_method_and_seed():
 def test_a_damaged_or_foreign_checkpoint_is_one_line_naming_it(tmp_path):
     import torch
 
-    from c2inet.trainer import load_checkpoint
+    from c2inet.checkpoints import load_checkpoint
 
     broken = tmp_path / "task_00.pt"
     broken.write_bytes(b"\x80\x02 not a checkpoint")
@@ -496,7 +496,7 @@ def test_the_estimate_times_a_tasks_steps_with_its_past_and_every_hook():
         while time.process_time() < until:
             pass
 
-    class Slow(Finetune, register=False):
+    class Slow(Finetune):
         """Fine-tuning that spins in its hooks."""
 
         def before_backward(self, ctx):
@@ -538,7 +538,7 @@ def test_the_estimate_times_every_task_on_its_own_scenes():
         while time.process_time() < until:
             pass
 
-    class SlowOnBig(Finetune, register=False):
+    class SlowOnBig(Finetune):
         """Fine-tuning whose steps on the task named big are slow."""
 
         def before_backward(self, ctx):

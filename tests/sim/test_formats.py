@@ -272,3 +272,52 @@ def test_every_that_the_files_frame_step_does_not_divide_is_refused(tmp_path):
     with pytest.raises(InputError, match="every = 12 keeps frames 60 apart"):
         read_trajectory_file(path, every=12)
     assert len(read_trajectory_file(path, every=10)) == 1  # a multiple of 5: kept as it is
+
+
+def sdd_trajnet_files(folder: Path, metres_per_unit: float = 1.0) -> None:
+    """The TrajNet split of SDD in its text form: train/ and test/ files of frame agent x y,
+    frames 12 apart (2.5 fps of SDD's 30), three walkers at 1.25 m/s in metres (times
+    ``metres_per_unit``'s inverse: pixels at 1/50 m a pixel when it is 0.02)."""
+    for split, scene in (("train", "bookstore_0"), ("train", "gates_1"), ("test", "coupa_0")):
+        (folder / split).mkdir(parents=True, exist_ok=True)
+        rows = [
+            f"{12 * t} {agent} {(0.5 * t + 3 * agent) / metres_per_unit:.4f} {agent / metres_per_unit}"
+            for t in range(30)
+            for agent in range(3)
+        ]
+        (folder / split / f"{scene}.txt").write_text("\n".join(rows) + "\n")
+
+
+def test_the_sdd_trajnet_family_reads_the_split_papers_use_in_metres(tmp_path, monkeypatch):
+    """sdd_trajnet_all trains on train/*.txt and tests on test/*.txt in metres; --data-root
+    may name the dataset's own folder; pixels are refused in one line; a folder of the other
+    SDD layout is named as such."""
+    from sim.run import main
+
+    sdd_trajnet_files(tmp_path / "sdd_trajnet")
+    monkeypatch.setenv("C2I_DATA_ROOT", str(tmp_path))
+    (spec,) = parse_scenario("sdd_trajnet_all")
+    domain = build_domain(spec, 0)
+    assert len(domain.scenes["train"]) == 2 and len(domain.scenes["test"]) == 1
+    assert domain.stats["mean_speed"] == pytest.approx(1.25)  # 0.5 m a step of 0.4 s
+    monkeypatch.setenv("C2I_DATA_ROOT", str(tmp_path / "sdd_trajnet"))  # the folder itself
+    (itself,) = parse_scenario("sdd_trajnet_all")
+    assert itself.knobs["train"] == spec.knobs["train"]
+    out = tmp_path / "run"
+    argv = ["--scenario", "sdd_trajnet_all", "--methods", "finetune,cv", "--quick", "--no-record"]
+    assert main([*argv, "--data-root", str(tmp_path / "sdd_trajnet"), "--out", str(out)]) == 0
+    assert json.loads((out / "metrics.json").read_text())["unit"] == "m"
+
+    pixels = tmp_path / "pixels"
+    sdd_trajnet_files(pixels, metres_per_unit=0.02)
+    monkeypatch.setenv("C2I_DATA_ROOT", str(pixels))
+    with pytest.raises(InputError, match=r"62.5 units/s .* are its coordinates pixels\?"):
+        build_domain(parse_scenario("sdd_trajnet_all")[0], 0)
+
+    sdd_root(tmp_path / "raw", monkeypatch)  # raw annotations where the text was expected
+    monkeypatch.setenv("C2I_DATA_ROOT", str(tmp_path / "raw" / "sdd"))
+    with pytest.raises(InputError, match="holds what family sdd reads"):
+        parse_scenario("sdd_trajnet_all")
+    monkeypatch.setenv("C2I_DATA_ROOT", str(tmp_path / "sdd_trajnet"))
+    with pytest.raises(InputError, match="holds what family sdd_trajnet reads"):
+        parse_scenario("sdd_bookstore")

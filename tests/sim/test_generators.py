@@ -38,20 +38,20 @@ class UncheckedKnobs(CrowdKnobs):
         pass
 
 
-class Unranged(CrowdGenerator, register=False):
+class Unranged(CrowdGenerator):
     """Crowd knobs without their ranges."""
 
     Knobs = UncheckedKnobs
 
 
-class Unseeded(CrowdGenerator, register=False):
+class Unseeded(CrowdGenerator):
     """Ignores its seed."""
 
     def generate(self, name, family, knobs, splits, seed, workers=1):
         return super().generate(name, family, knobs, splits, np.random.SeedSequence(7), workers)
 
 
-class Unrepeatable(CrowdGenerator, register=False):
+class Unrepeatable(CrowdGenerator):
     """Draws from the global random state."""
 
     def generate(self, name, family, knobs, splits, seed, workers=1):
@@ -59,7 +59,7 @@ class Unrepeatable(CrowdGenerator, register=False):
         return super().generate(name, family, knobs, splits, np.random.SeedSequence(noise))
 
 
-class Hungry(CrowdGenerator, register=False):
+class Hungry(CrowdGenerator):
     """Allocates far beyond its memory estimate."""
 
     def generate(self, name, family, knobs, splits, seed, workers=1):
@@ -69,7 +69,7 @@ class Hungry(CrowdGenerator, register=False):
         return domain
 
 
-class Statless(CrowdGenerator, register=False):
+class Statless(CrowdGenerator):
     """Forgets a statistic the reports read."""
 
     def generate(self, name, family, knobs, splits, seed, workers=1):
@@ -78,7 +78,7 @@ class Statless(CrowdGenerator, register=False):
         return domain
 
 
-class Short(CrowdGenerator, register=False):
+class Short(CrowdGenerator):
     """Scenes too short for one learner window."""
 
     def generate(self, name, family, knobs, splits, seed, workers=1):

@@ -1,0 +1,77 @@
+"""Numba's cache never stops a command: none where none can be written, a damaged one rebuilt
+(issue 64's first case). Each test runs a training step in a fresh process, as a user would."""
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+STEP = """
+import sys
+sys.path.insert(0, {tests!r})
+from toys import turning_tasks
+from c2inet.methods.base import get_method
+from c2inet.model_config import ModelConfig
+from c2inet.trainer import ContinualTrainer, TrainConfig
+config = TrainConfig(epochs=1, k=2)
+result = ContinualTrainer(get_method("finetune")(ModelConfig()), turning_tasks(), config).run()
+print("ade", result.matrices["ade"][-1, -1])
+""".format(tests=str(ROOT / "tests" / "c2inet"))
+
+
+def step(env: dict, prefix: tuple[str, ...] = ()) -> subprocess.CompletedProcess:
+    command = [*prefix, sys.executable, "-c", STEP]
+    return subprocess.run(command, env=env, capture_output=True, text=True, timeout=300, cwd=ROOT)
+
+
+def base_env(tmp_path: Path) -> dict:
+    return {"PATH": "/usr/bin:/bin", "HOME": str(tmp_path), "PYTHONPATH": str(ROOT)}
+
+
+def test_a_damaged_cache_is_rebuilt_with_one_note(tmp_path):
+    """Truncated, random and swapped cache files: the run gives the same numbers, says so
+    once, and the next run reads the rebuilt cache without a word."""
+    env = {**base_env(tmp_path), "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
+    first = step(env)
+    assert first.returncode == 0, first.stderr
+    (kernels,) = (tmp_path / "numba").glob("backbones_*")
+    index, *_ = sorted(kernels.glob("*.nbi"))
+    index.write_bytes(index.read_bytes()[:7])  # truncated
+    data = sorted(kernels.glob("*.nbc"))
+    data[0].write_bytes(b"\x80\x05not a pickle at all")  # random
+    a, b = data[1].read_bytes(), data[2].read_bytes()
+    data[1].write_bytes(b)  # two functions' files swapped
+    data[2].write_bytes(a)
+    damaged = step(env)
+    assert damaged.returncode == 0, damaged.stderr
+    assert damaged.stdout == first.stdout
+    assert "numba's cache" in damaged.stderr and "is damaged" in damaged.stderr
+    again = step(env)
+    assert again.stdout == first.stdout and "numba" not in again.stderr
+
+
+def _read_only_namespace() -> bool:
+    if not shutil.which("unshare"):
+        return False
+    probe = ["unshare", "-m", "sh", "-c", "mount -t tmpfs -o ro tmpfs /mnt"]
+    return subprocess.run(probe, capture_output=True).returncode == 0
+
+
+@pytest.mark.skipif(not _read_only_namespace(), reason="needs unshare -m and mount (root)")
+def test_a_read_only_install_and_home_compile_without_a_cache(tmp_path):
+    """The package folder and HOME read-only (a bind mount in a private mount namespace): the
+    step runs, compiled without a cache, with one note saying so."""
+    home = tmp_path / "home"
+    home.mkdir()
+    mounts = (
+        f"mount --bind {ROOT} {ROOT} && mount -o remount,bind,ro {ROOT} && "
+        f"mount --bind {home} {home} && mount -o remount,bind,ro {home} && exec \"$@\""
+    )
+    env = {**base_env(home), "PYTHONDONTWRITEBYTECODE": "1"}
+    done = step(env, ("unshare", "-m", "sh", "-c", mounts, "sh"))
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith("ade ")
+    assert done.stderr.count("numba cannot write a cache here") == 1

@@ -1,0 +1,107 @@
+"""The training recipe: the learning-rate schedule within a task and validation selection."""
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from c2inet import trainer as trainer_module
+from c2inet.errors import InputError
+from c2inet.methods.base import get_method
+from c2inet.model_config import ModelConfig
+from c2inet.schedule import learning_rate
+from c2inet.selection import BestEpoch
+from c2inet.trainer import ContinualTrainer, TrainConfig
+
+from toys import turning_tasks
+
+
+def test_the_schedule_warms_up_then_decays_to_its_final_share():
+    def rate(schedule, t, warmup=0.0):
+        return learning_rate(1.0, schedule, t, 10, warmup, 0.01)
+
+    assert [rate("constant", t) for t in (0, 5, 9.9)] == [1.0, 1.0, 1.0]
+    assert rate("cosine", 0) == pytest.approx(1.0)
+    assert rate("cosine", 5) == pytest.approx(0.505)  # half way: the mean of 1 and 0.01
+    assert rate("cosine", 10) == pytest.approx(0.01)
+    assert rate("linear", 2.5) == pytest.approx(1 - 0.99 * 0.25)
+    assert rate("cosine", 0.5, warmup=2) == pytest.approx(0.25, abs=1e-3)  # rising linearly
+    assert rate("cosine", 2, warmup=2) == pytest.approx(1.0)  # the decay starts after it
+    assert 0 < rate("cosine", 0, warmup=2) < 1e-3  # the very first step still moves
+
+
+def test_the_schedule_changes_the_rate_the_optimiser_steps_with():
+    """A trained task's epochs record the rate of their last step: constant stays at lr,
+    cosine falls towards lr * lr_final, and the optimiser holds the scheduled rate."""
+    rates = {}
+    for schedule in ("constant", "cosine"):
+        config = TrainConfig(epochs=4, k=2, lr=2e-3, schedule=schedule, lr_final=0.1)
+        trainer = ContinualTrainer(get_method("finetune")(ModelConfig()), turning_tasks(), config)
+        result = trainer.run()
+        rates[schedule] = [r["lr"] for r in result.history if r["task"] == 1]
+    assert rates["constant"] == [2e-3] * 4
+    falling = rates["cosine"]
+    assert all(a > b for a, b in zip(falling, falling[1:], strict=False))
+    # 8 scenes make one step an epoch: the last one starts 3 epochs into the 4
+    assert falling[-1] == pytest.approx(learning_rate(2e-3, "cosine", 3, 4, 0, 0.1))
+    with pytest.raises(InputError, match="schedule"):
+        TrainConfig(schedule="exponential")
+    with pytest.raises(InputError, match="select"):
+        TrainConfig(select="test")
+
+
+def test_best_epoch_keeps_the_state_of_the_lowest_score():
+    model = torch.nn.Linear(2, 1)
+    method = get_method("finetune")(ModelConfig())
+    best = BestEpoch()
+    weights = {}
+    for epoch, score in enumerate([0.5, 0.2, float("nan"), 0.4]):  # a planted curve
+        with torch.no_grad():
+            model.weight.fill_(epoch)
+        weights[epoch] = model.weight.clone()
+        best.offer(score, epoch, model, None, method)
+    assert best.epoch == 1 and best.score == 0.2
+    best.restore(model, None, method)
+    assert torch.equal(model.weight, weights[1])
+
+
+def test_a_task_keeps_its_validation_best_epoch(monkeypatch):
+    """With ``select = val`` the trainer scores each epoch on the current task's validation
+    split alone (a planted curve here, best at epoch 1 of 3) and ends the task with that epoch's
+    weights: its test errors are those of a run of 2 epochs, not of 3."""
+    planted = iter([0.5, 0.2, 0.4] * 2)
+    scored = []
+    real_evaluate = trainer_module.evaluate
+
+    def fake_evaluate(model, windows, k, *args, **kwargs):
+        if k == 7:  # the selection's score (select_k = 7 marks it)
+            scored.append(windows)
+            return {"ade": next(planted)}
+        return real_evaluate(model, windows, k, *args, **kwargs)
+
+    monkeypatch.setattr(trainer_module, "evaluate", fake_evaluate)
+    tasks = turning_tasks()
+
+    def run(epochs, select):
+        config = TrainConfig(epochs=epochs, k=2, select=select, select_k=7, val_every=0)
+        return ContinualTrainer(get_method("finetune")(ModelConfig()), tasks, config).run()
+
+    selected = run(3, "val")
+    assert [r["selected_epoch"] for r in selected.history if "selected_epoch" in r] == [1, 1]
+    assert [id(w) for w in scored] == [id(tasks[0].val)] * 3 + [id(tasks[1].val)] * 3
+    last = run(3, "last")
+    assert not np.array_equal(selected.matrices["ade"], last.matrices["ade"])  # live
+    # the selected run holds epoch 1's weights: task 0's row equals a 2-epoch run's
+    monkeypatch.setattr(trainer_module, "evaluate", real_evaluate)
+    two = run(2, "last")
+    np.testing.assert_array_equal(selected.matrices["ade"][0], two.matrices["ade"][0])
+
+
+def test_selection_needs_a_validation_split():
+    tasks = turning_tasks()
+    tasks[0].val = None
+    config = TrainConfig(epochs=1, k=2, select="val")
+    with pytest.raises(InputError, match="no validation split"):
+        ContinualTrainer(get_method("finetune")(ModelConfig()), tasks, config).run()
+    assert math.isfinite(TrainConfig(select="val").select_k)
