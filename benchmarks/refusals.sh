@@ -1,7 +1,7 @@
 #!/bin/bash
-# Issue 47's reproducers, run against this checkout: each must answer one `error:` line and
+# Issue 47's and issue 64's reproducers, run against this checkout: each must answer one `error:` line and
 # exit 2 (or keep the user's file), never a traceback. Prints one row a case.
-#   bash benchmarks/refusals.sh [PYTHON]
+#   bash benchmarks/refusals.sh [PYTHON]   (an absolute path: the cases run in a temporary folder)
 set -u
 PY=${1:-python}
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
@@ -44,3 +44,21 @@ row "resume: config.json truncated" $PY -m sim.run --scenario crowd_noise_0.1 --
 mkdir -p gen2/src && echo mine > gen2/src/notes.txt && echo '{"domains": [{"name": "src"}]}' > gen2/summary.json
 row "generate --overwrite: a summary naming src" $PY -m sim.generate --scenario crowd_noise_0.1 --set data.splits.train=2 --out gen2 --overwrite
 printf '%-44s %s\n' "  the user's gen2/src/notes.txt afterwards:" "$(cat gen2/src/notes.txt 2>&1)"
+# Issue 64's reproducers (the numbered cases of its audit), on this checkout
+cfg gen.toml $'scenario = "crowd_noise_0.1"\n[settings.data]\nagents = 3\n"splits.train" = 4\n"splits.val" = 2\n"splits.test" = 3'
+row "5: generate --config [settings.data]" $PY -m sim.generate --config gen.toml --out gen3
+printf '%-44s %s\n' "  its summary (3 agents, 4/2/3 expected):" "$($PY -c "import json; d=json.load(open('gen3/summary.json'))['domains'][0]; print(d['knobs']['agents'], d['splits'])" 2>&1)"
+mkdir -p run3 && $PY -m sim.run --scenario crowd_noise_0.1..0.2 --quick --methods cv --no-record --out run3 > /dev/null 2>&1
+rm -f run3/jobs/cv/seed_0/result.json run3/jobs/cv/seed_0/checkpoints/task_00.pt && mkdir run3/jobs/cv/seed_0/checkpoints/task_00.pt
+row "8: a checkpoint replaced by a folder" $PY -m sim.run --scenario crowd_noise_0.1..0.2 --quick --methods cv --no-record --resume --out run3
+$PY -c "print('{\"track\": ' * 100000 + '1' + '}' * 100000)" > tp/deep.ndjson
+printf 'generator = "files"\n[knobs]\nformat = "trajnetpp"\n[values.a]\ntrain = ["tp/deep.ndjson"]\ntest = ["tp/deep.ndjson"]\n' > deep.toml
+row "8: a TrajNet++ line nested 100,000 deep" $PY -m sim.generate --scenarios-dir "$W" --scenario deep_a --out gen4
+mkdir -p sd && printf '1.5 0 0 10 10 0 0 0 0 "Pedestrian"\n1.7 0 0 10 10 12 0 0 0 "Pedestrian"\n' > sd/a.txt
+printf 'generator = "files"\n[knobs]\nformat = "sdd"\n[values.a]\ntrain = ["sd/a.txt"]\ntest = ["sd/a.txt"]\n' > sdd1.toml
+row "8: SDD track ids 1.5 and 1.7" $PY -m sim.generate --scenarios-dir "$W" --scenario sdd1_a --out gen5
+printf '{"scene": {"id": 0, "p": 1, "s": 0, "e": 10}}\n{"track": {"f": 0, "p": 1, "x": 9e5, "y": 0}}\n' > tp/far.ndjson
+printf 'generator = "files"\n[knobs]\nformat = "trajnetpp"\nscale = 100.0\n[values.a]\ntrain = ["tp/far.ndjson"]\ntest = ["tp/far.ndjson"]\n' > far.toml
+row "8: TrajNet++ 9e5 at scale 100 (9e7 m)" $PY -m sim.generate --scenarios-dir "$W" --scenario far_a --out gen6
+row "8: a 300-character SQLite name" $PY -m sim.bench --scenario crowd_noise_0.1..0.3 --quick --storage "sqlite:///$W/$($PY -c "print('s'*300)").db" --out bench3
+C2I_DATA_ROOT="$($PY -c "print('/tmp/' + 'r'*5000)")" row "8: a 5,000-character \$C2I_DATA_ROOT" $PY -m sim.run --scenario sdd_trajnet_all --quick --methods cv

@@ -80,6 +80,8 @@ def _how_it_ran(run: dict[str, Any] | None, k: int) -> list[str]:
     if run is None:
         return []
     kind = "**quick** (tiny sizes: a smoke test, not a result)" if run["quick"] else "full"
+    if not run["quick"] and run.get("size", "full") != "full":
+        kind = f"**{run['size']}**"  # below the family's sizes: not the full-size result
     seeds = (
         "**one seed** (no spread: a first look, not a result)"
         if run["seeds"] == 1

@@ -26,7 +26,9 @@ import subprocess
 import sys
 from pathlib import Path
 
-from c2inet.files import write_text_atomic
+from c2inet.errors import InputError
+from c2inet.files import writable_folder, write_text_atomic
+from viz.cli import guarded
 
 CALIBRATION = Path("docs/calibration")
 SCENES = ("eth", "hotel", "univ", "zara1", "zara2")
@@ -50,13 +52,18 @@ def run_arm(scenario: str, scene: str, out: Path, seeds: int, jobs: int) -> tupl
     command += ["--jobs", str(jobs), "--no-record", "--out", str(out)]
     if (out / "config.json").exists():
         command.append("--resume")
-    if not (out / "metrics.json").exists():
-        subprocess.run(command, check=True)
+    if not (out / "metrics.json").exists() and subprocess.run(command).returncode:
+        raise InputError(f"the run of {scenario} into {out} failed (its error is above)")
     return final_ade(out)
 
 
 def scene_row(scene: str, out: Path, seeds: int, jobs: int) -> dict[str, float]:
-    measured = json.loads((CALIBRATION / scene / "transfer_fitted.json").read_text())["transfer"]
+    source = CALIBRATION / scene / "transfer_fitted.json"
+    try:
+        measured = json.loads(source.read_text())["transfer"]
+    except (OSError, ValueError, KeyError, TypeError) as error:
+        raise InputError(f"{source}: cannot read its transfer ({type(error).__name__}); run "
+                         "python -m sim.study fidelity for that scene first") from None  # fmt: skip
     fitted = measured["tasks"][0]
     row = {
         "fitted alone": measured["ade"][0][1],
@@ -98,21 +105,31 @@ def markdown(rows: dict[str, dict[str, float]], seeds: int) -> str:
     )
 
 
-def main() -> None:
+@guarded
+def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--seeds", type=int, default=3)
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--scenes", default=",".join(SCENES))
     p.add_argument("--runs", type=Path, default=Path("bench/pretrain"), help="the runs' folders")
     p.add_argument("--out", type=Path, default=CALIBRATION / "pretrain", help="the table's")
-    args = p.parse_args()
-    rows = {s: scene_row(s, args.runs, args.seeds, args.jobs) for s in args.scenes.split(",")}
-    args.out.mkdir(parents=True, exist_ok=True)
+    args = p.parse_args(argv)
+    for name, value in (("--seeds", args.seeds), ("--jobs", args.jobs)):
+        if not 1 <= value <= 64:
+            raise InputError(f"{name} {value}: expected 1 to 64")
+    scenes = args.scenes.split(",")
+    unknown = sorted(set(scenes) - set(SCENES))
+    if unknown:
+        raise InputError(f"--scenes: {unknown[0]!r} is no ETH-UCY scene ({', '.join(SCENES)})")
+    writable_folder(args.out, "--out")  # before hours of training, not after
+    writable_folder(args.runs, "--runs")
+    rows = {s: scene_row(s, args.runs, args.seeds, args.jobs) for s in scenes}
     write_text_atomic(args.out / "pretrain.json", json.dumps(rows, indent=1) + "\n")
     text = markdown(rows, args.seeds)
     write_text_atomic(args.out / "pretrain.md", text)
     print(text)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -20,7 +20,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from tuning_stability import finals  # noqa: E402
 
+from c2inet.errors import InputError  # noqa: E402
+from c2inet.files import write_text_atomic  # noqa: E402
+from viz.cli import guarded  # noqa: E402
+
 RESAMPLES = 2000
+MIN_SEEDS = 3  # fewer seeds on either board give no interval: resampling two draws is no CI
 
 
 def seed_table(board: Path, methods: list[str]) -> np.ndarray:
@@ -51,17 +56,39 @@ def transfer(a: np.ndarray, b: np.ndarray, resamples: int = RESAMPLES, seed: int
     return {"tau": float(tau), "interval": (float(low), float(high))}
 
 
+def read_board(board: Path) -> dict:
+    """A board's final ADE per method and seed; a folder that is not a board is one line."""
+    if not (board / "results.parquet").is_file():
+        raise InputError(f"{board}: no results.parquet there (a benchmark's folder)")
+    try:
+        return finals(board)
+    except Exception as error:  # pyarrow and pandas raise many kinds for a damaged file
+        raise InputError(
+            f"{board}/results.parquet: cannot read it ({type(error).__name__})"
+        ) from None
+
+
 def report(sim: Path, real: Path, references: tuple[str, ...] = ("joint", "joint-scratch")) -> str:
-    methods = sorted((set(finals(sim)) & set(finals(real))) - set(references))
+    first, second = read_board(sim), read_board(real)
+    methods = sorted((set(first) & set(second)) - set(references))
+    if len(methods) < 3:
+        raise InputError(f"{sim} and {real}: {len(methods)} ranked methods in common; a ranking "
+                         "needs 3 or more")  # fmt: skip
     a, b = seed_table(sim, methods), seed_table(real, methods)
+    if not len(a) or not len(b):
+        raise InputError(f"{sim if not len(a) else real}: no seed that every method has")
     result = transfer(a, b)
     rank_a, rank_b = ranks(a.mean(0)), ranks(b.mean(0))
     low, high = result["interval"]
+    interval = (
+        f" [{low:+.2f}, {high:+.2f}]** (95 % bootstrap over each board's seeds, {RESAMPLES} draws)"
+        if min(len(a), len(b)) >= MIN_SEEDS
+        else f"** (no interval: a board has fewer than {MIN_SEEDS} seeds to resample)"
+    )
     lines = [
         f"Ranking on `{sim}` (A, {len(a)} seeds) against `{real}` (B, {len(b)} seeds), "
         f"{len(methods)} methods by final point-prediction ADE (metres): **Kendall's tau "
-        f"{result['tau']:+.2f} [{low:+.2f}, {high:+.2f}]** (95 % bootstrap over each board's "
-        f"seeds, {RESAMPLES} draws).",
+        f"{result['tau']:+.2f}{interval}.",
         "",
         "| method | A: ADE | A: rank | B: ADE | B: rank | moves (B minus A) |",
         "|---|---|---|---|---|---|",
@@ -75,16 +102,20 @@ def report(sim: Path, real: Path, references: tuple[str, ...] = ("joint", "joint
     return "\n".join(lines) + "\n"
 
 
-def main() -> int:
+@guarded
+def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("sim", type=Path)
     p.add_argument("real", type=Path)
     p.add_argument("--out", type=Path, help="also write the table here")
-    args = p.parse_args()
+    args = p.parse_args(argv)
     text = report(args.sim, args.real)
     print(text, end="")
     if args.out:
-        args.out.write_text(text)
+        try:
+            write_text_atomic(args.out, text)
+        except OSError as error:
+            raise InputError(f"--out {args.out}: cannot write it ({error.strerror})") from None
     return 0
 
 

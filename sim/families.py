@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import Any
 
 from c2inet.errors import InputError, did_you_mean
+from c2inet.files import check_path_length
 from c2inet.options import build
 from sim.generators import get_generator
 
@@ -145,7 +146,7 @@ class Family:
         if not self.data_root:
             return self.path.parent
         root = os.environ.get(DATA_ROOT_ENV, "")
-        given = Path(root).expanduser()
+        given = check_path_length(Path(root).expanduser(), f"${DATA_ROOT_ENV} (--data-root)")
         if root and (given / self.data_root).is_dir():
             return given / self.data_root
         if root and given.is_dir() and self.holds_files(given):

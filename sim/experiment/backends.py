@@ -205,6 +205,37 @@ def check_importable_main() -> None:
         )
 
 
+def check_guarded_main(jobs: int) -> None:
+    """Refuse, before any folder or worker, parallel jobs started by a script's top level
+    outside ``if __name__ == "__main__":``: every worker process imports the script again, so
+    each would start the whole experiment anew (stray run folders, dying workers)."""
+    main = sys.modules.get("__main__")
+    path = getattr(main, "__file__", None)
+    if jobs <= 1 or path is None or not Path(path).is_file():
+        return
+    import ast
+    import inspect
+
+    lines = [f.lineno for f in inspect.stack(0) if f.filename == path and f.function == "<module>"]
+    if not lines:
+        return
+    try:
+        tree = ast.parse(Path(path).read_text(encoding="utf-8"))
+    except (OSError, SyntaxError, ValueError):
+        return
+    guarded = [
+        (node.lineno, node.end_lineno)
+        for node in ast.walk(tree)
+        if isinstance(node, ast.If) and "__main__" in ast.unparse(node.test)
+    ]
+    line = lines[-1]
+    if not any(first <= line <= last for first, last in guarded):
+        raise InputError(
+            f"{Path(path).name}:{line}: jobs > 1 starts worker processes that import this script "
+            'again; put the call under if __name__ == "__main__": (or run one job)'
+        )
+
+
 def _run_in_pool(pool, calls, order, progress, tasks_of, jobs) -> list[Any]:
     """The calls on the local pool, submitted in ``order``; results in the calls' order."""
     futures = {pool.submit(_call_in_worker, calls[i]): i for i in order}

@@ -122,6 +122,33 @@ class ExperimentConfig:
                 )
         return dict(first)
 
+    @cached_property
+    def reductions(self) -> tuple[str, ...]:
+        """What this configuration trains less than its families' and the learner's defaults
+        (scenes a split, the training windows' share, epochs), in words; empty: the full size
+        (or ``quick``, marked apart)."""
+        if self.quick:
+            return ()
+        plain = parse_scenario(self.scenario, list(self.scenarios_dir))[0].family
+        family, out = self.specs[0].family, []
+        for split in ("train", "val", "test"):
+            given, default = getattr(family.splits, split), getattr(plain.splits, split)
+            if family.generator != "files" and given < default:
+                out.append(f"{split} {given} of {default} scenes a task")
+        if family.share < plain.share:
+            out.append(f"the first {family.share:g} of the training windows")
+        default_epochs = self.family_train.get("epochs", 20)
+        if self.epochs < default_epochs:
+            out.append(f"{self.epochs} of {default_epochs} epochs")
+        return tuple(out)
+
+    @property
+    def size(self) -> str:
+        """``quick``, ``full`` or ``reduced (...)``: what every output calls the run's sizes."""
+        if self.quick:
+            return "quick"
+        return f"reduced ({'; '.join(self.reductions)})" if self.reductions else "full"
+
     @property
     def unit(self) -> str:
         """What the curriculum's positions, so its errors, are in: ``m`` or ``px``; a curriculum

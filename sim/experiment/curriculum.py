@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import math
 import os
+import sys
+import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -22,7 +24,6 @@ from sim.domains import build_domain, cache_path, rollout_scene
 from sim.experiment.config import Execution, ExperimentConfig
 from sim.families import Splits, Windowing
 from sim.generators import Generator, get_generator
-from sim.progress import progress_bar
 from sim.scenario import DomainSpec, parse_scenario
 from viz.observer import Showcase
 
@@ -90,8 +91,14 @@ def make_tasks(
 ) -> tuple[list[Task], list]:
     """Domains of the curriculum as learner tasks (windows per split)."""
     tasks, domains = [], []
-    for spec in progress_bar(specs, desc="domains", unit="domain", transient=True):
-        domain = build_domain(spec, seed, cache, _splits(spec, quick), workers, memory_budget)
+    for i, spec in enumerate(specs, 1):
+        splits = _splits(spec, quick)
+        cached = cache is not None and cache_path(spec, seed, cache, splits).is_file()
+        started = time.perf_counter()
+        domain = build_domain(spec, seed, cache, splits, workers, memory_budget)
+        how = "read from the cache" if cached else f"made in {time.perf_counter() - started:.1f} s"
+        sizes = "/".join(str(len(domain.scenes[split])) for split in SPLITS)
+        print(f"domain {i}/{len(specs)} {domain.name}: {how} ({sizes} scenes)", file=sys.stderr)
         splits = domain_windows(domain, spec.family.windowing)
         if quick:
             splits = {k: _first(w, QUICK_WINDOWS) for k, w in splits.items()}

@@ -190,6 +190,7 @@ def write_report_and_figures(
     command and marks quick sizes; returns what the report says of the run, and the report."""
     run = {
         "quick": config.quick,
+        "size": config.size,
         "epochs": config.epochs,
         "seeds": config.seeds,
         "wall_seconds": wall,
@@ -215,6 +216,7 @@ def run_card(config, execution, curriculum, wall: float, argv: list[str]) -> dic
         "seeds": config.seeds,
         "methods": list(config.methods),
         "quick": config.quick,
+        "size": config.size,
         "command": shlex.join(argv),
         "git_commit": git_commit(),
         "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),

@@ -16,7 +16,7 @@ from typing import Any
 
 import torch
 
-from sim.experiment.backends import run_jobs
+from sim.experiment.backends import check_guarded_main, run_jobs
 from sim.experiment.config import Execution, ExperimentConfig
 from sim.experiment.estimate import describe, job_seconds, run_seconds
 from sim.experiment.folders import TRUTH_PART, claim, output_folder
@@ -43,6 +43,8 @@ def run_experiment(
     their last task; the configuration must equal the folder's. Returns ``metrics.json``.
     """
     execution = execution or Execution()
+    if execution.backend == "local":
+        check_guarded_main(execution.jobs)
     if execution.rerun not in (None, "spawn"):
         check_reachable(viewer_url(execution.rerun))
     out = output_folder(config.scenario, out, resume)
@@ -61,9 +63,13 @@ def run_experiment(
     if not resume and not config.quick:  # timing a quick run would cost as much as running it
         each = job_seconds(config, curriculum.inputs.tasks)
         estimate = run_seconds(config, each, execution.jobs)
+        prepared = time.perf_counter() - started  # the domains, generated or read
+        size = "" if config.size == "full" else f"{config.size}: "
         print(
-            f"{len(jobs)} jobs x {tasks} tasks, {execution.jobs} at a time: about "
-            f"{describe(estimate)} of training and evaluation (timed on this machine)",
+            f"{size}{len(jobs)} jobs x {tasks} tasks, {execution.jobs} at a time: about "
+            f"{describe(prepared + estimate)} in all ({describe(prepared)} of it preparing the "
+            f"domains, done; about {describe(estimate)} of training and evaluation, timed on "
+            "this machine)",
             file=sys.stderr,
         )
     with progress_bar(total=len(jobs) * tasks, desc="tasks", unit="task") as bar:

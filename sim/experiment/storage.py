@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from c2inet.errors import InputError
+from c2inet.files import check_path_length
 
 JOURNAL = "journal:"  # --storage journal:FILE: Optuna's journal, for writers on many machines
 
@@ -33,7 +34,7 @@ def check_storage(url: str | None, where: str | None = None) -> None:
         return
     where = where or f"--storage {url[:80]!r}"
     if url.startswith(JOURNAL):
-        _check_journal(Path(url[len(JOURNAL) :]).expanduser(), where)
+        _check_journal(check_path_length(Path(url[len(JOURNAL) :]).expanduser(), where), where)
         return
     import sqlite3
 
@@ -45,7 +46,7 @@ def check_storage(url: str | None, where: str | None = None) -> None:
     except Exception as error:  # SQLAlchemy's parser: whatever it raises
         raise InputError(f"{where}: not a database URL ({type(error).__name__})") from None
     if parsed.get_backend_name() == "sqlite" and parsed.database:
-        path = Path(parsed.database)
+        path = check_path_length(Path(parsed.database), where)
         if path.exists():
             try:
                 with sqlite3.connect(f"file:{path}?mode=ro", uri=True) as db:

@@ -49,6 +49,8 @@ def sdd_rows(path: Path, start: int, lines: list[str], labels: tuple[str, ...]) 
         except ValueError:
             text = quote(line.strip())
             raise InputError(f"{path}:{number}: non-numeric value in {text}") from None
+        if not track.is_integer():  # 1.5 and 1.7 would both be agent 1
+            raise InputError(f"{path}:{number}: track id {fields[0]} is not a whole number")
         rows.append((frame, track, (x0 + x1) / 2, (y0 + y1) / 2, number))
     out = np.array(rows, dtype=float).reshape(-1, 5)
     bad = ~np.isfinite(out[:, :4]).all(1)
@@ -95,7 +97,7 @@ def trajnet_scenes(path: Path, scale: float = 1.0, every: int = 1) -> list[Scene
     if not records or not tracks:
         raise InputError(f"{path}: needs scene and track records (TrajNet++ ndjson)")
     rows = np.array(tracks, dtype=float)
-    _check_tracks(path, rows)
+    _check_tracks(path, rows, scale)
     rows = rows[rows[:, 0] % every == 0] if every > 1 else rows
     if not len(rows):
         raise InputError(f"{path}: no track rows on frames that are multiples of {every}")
@@ -127,12 +129,12 @@ def trajnet_scenes(path: Path, scale: float = 1.0, every: int = 1) -> list[Scene
     return scenes
 
 
-def _check_tracks(path: Path, rows: np.ndarray) -> None:
+def _check_tracks(path: Path, rows: np.ndarray, scale: float = 1.0) -> None:
     """Track rows as every reader checks them: integer frame and agent ids, coordinates within
-    MAX_COORDINATE metres, one row per agent and frame."""
+    MAX_COORDINATE metres once scaled, one row per agent and frame."""
     if (rows[:, :2] != np.round(rows[:, :2])).any():
         raise InputError(f"{path}: a track's frame or agent id is not an integer")
-    if (np.abs(rows[:, 2:4]) > MAX_COORDINATE).any():
+    if (np.abs(rows[:, 2:4] * scale) > MAX_COORDINATE).any():
         raise InputError(f"{path}: a coordinate beyond {MAX_COORDINATE:g} m")
     keys = rows[:, :2]
     if len(np.unique(keys, axis=0)) < len(keys):
@@ -166,5 +168,7 @@ def _record(path: Path, number: int, line: str, records: list, tracks: list) -> 
         raise InputError(f"{where}: not a JSON line ({error.msg})") from None
     except KeyError as error:
         raise InputError(f"{where}: record lacks the field {error}") from None
+    except RecursionError:
+        raise InputError(f"{where}: a record nested too deeply") from None
     except (TypeError, ValueError, AttributeError, OverflowError):
         raise InputError(f"{where}: malformed record {quote(line.strip())}") from None

@@ -671,6 +671,10 @@ def test_settings_tuned_by_another_benchmark_reach_every_job_and_no_trial_runs(t
         ({"finetune": chosen["finetune"], "cv": chosen["cv"]}, "no chosen settings of 'ewc'"),
         ({**chosen, "ewc": {"settings": {"ewc": {"strenght": 1}}}}, "ewc:"),
         ([1, 2], "expected a table of methods"),
+        # issue 64's cases: what --set refuses, and what no tuning of the method could choose
+        ({**chosen, "ewc": {"settings": {"data": {"agents": 3}}}}, "the data are the board's"),
+        ({**chosen, "ewc": {"settings": {"model": {"z_dim": 4}}}}, "outside ewc's search"),
+        ({**chosen, "ewc": {"settings": {"derpp": {"alpha": 1}}}}, "an unknown scope"),
     ):
         bad = tmp_path / "bad.json"
         bad.write_text(json.dumps(broken))
@@ -701,6 +705,7 @@ def test_the_ranking_transfer_is_one_for_one_ranking_and_falls_as_it_reverses(sc
     boards = root / "docs" / "leaderboards"
     text = ranking.report(boards / "density", boards / "density-60")
     assert "Kendall's tau +0.65" in text and "| coresets | 0.423 | 1 | 0.423 | 1 | +0 |" in text
+    assert ranking.main([str(root), str(boards / "density")]) == 2  # no board: one line
 
 
 def test_a_board_says_how_its_jobs_shared_the_machine():

@@ -122,13 +122,14 @@ def test_the_pretraining_script_runs_its_three_arms_and_its_committed_table_is_i
     pretrain = script("scripts/pretrain_transfer.py")
     commands = []
 
-    def fake_run(command, check):  # a run that ends with its last task's ADE, by arm
+    def fake_run(command):  # a run that ends with its last task's ADE, by arm
         commands.append(command)
         out = Path(command[command.index("--out") + 1])
         out.mkdir(parents=True)
         ade = {"tenth": 0.4, "fitted+tenth": 0.5, "fitted+all": 0.3}[out.name]
         metrics = {"methods": {"finetune": {"ade": [[9.0, ade]], "ade_std": [[9.0, 0.01]]}}}
         (out / "metrics.json").write_text(json.dumps(metrics))
+        return subprocess.CompletedProcess(command, 0)
 
     monkeypatch.chdir(root)
     monkeypatch.setattr(subprocess, "run", fake_run)
@@ -147,3 +148,10 @@ def test_the_pretraining_script_runs_its_three_arms_and_its_committed_table_is_i
     committed = root / "docs" / "calibration" / "pretrain"
     rows = json.loads((committed / "pretrain.json").read_text())
     assert pretrain.markdown(rows, 3) == (committed / "pretrain.md").read_text()
+    # bad input is one line and exit 2, before any training (issue 64's seventh case)
+    for argv, why in (
+        (["--scenes", "mars"], "'mars' is no ETH-UCY scene"),
+        (["--seeds", "0"], "--seeds 0: expected 1 to 64"),
+        (["--out", "/proc/nowhere/x"], "--out /proc/nowhere/x: cannot create it"),
+    ):
+        assert pretrain.main(argv) == 2 and len(commands) == 3
