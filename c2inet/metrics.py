@@ -9,8 +9,12 @@ from __future__ import annotations
 import numpy as np
 
 POINT_DRAWS = 16  # the point prediction (K = 1) is the mean of at least this many sampled futures
-COLLISION_DISTANCE = 0.1  # metres: two paths closer than this collide (TrajNet++'s threshold)
-COLLISION_SUBSTEPS = 4  # points checked between two frames, on the straight line (TrajNet++'s)
+# TrajNet++'s collision (trajnetplusplustools.metrics.collision): two people of radius 0.1 m
+# collide where their paths come within two radii, 0.2 m, checked at the frames and at the
+# midpoint of every step between two predicted frames (its inter_parts = 2)
+COLLISION_RADIUS = 0.1
+COLLISION_DISTANCE = 2 * COLLISION_RADIUS
+COLLISION_PARTS = 2  # each step between frames cut in this many, its points compared in pairs
 
 
 def displacement_errors(pred: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -68,28 +72,33 @@ def evaluate_predictions(
 
 
 def _densified(paths: np.ndarray) -> np.ndarray:
-    """(T, N, 2) paths with :data:`COLLISION_SUBSTEPS` points on the line between frames."""
-    steps = np.linspace(0, 1, COLLISION_SUBSTEPS + 1)[:-1, None, None, None]
+    """(T, N, 2) paths with the points that cut each step between frames into
+    :data:`COLLISION_PARTS` equal parts (the frames kept), as TrajNet++ checks them."""
+    steps = np.linspace(0, 1, COLLISION_PARTS + 1)[:-1, None, None, None]
     between = paths[:-1][None] + steps * (paths[1:] - paths[:-1])[None]  # (S, T-1, N, 2)
     return np.concatenate([between.transpose(1, 0, 2, 3).reshape(-1, *paths.shape[1:]), paths[-1:]])
 
 
 def collisions(point: np.ndarray, truth: np.ndarray, scene_start: np.ndarray) -> dict[str, float]:
-    """TrajNet++'s collision rates of the point prediction (T, N, 2), over the agents that
-    share their scene with another: ``col_pred`` (Col-I), the share whose predicted path comes
-    within :data:`COLLISION_DISTANCE` of another agent's predicted path at the same moment;
-    ``col_truth`` (Col-II), of another agent's true path. 0 where no scene has two agents."""
+    """TrajNet++'s collision rates of the point prediction (T, N, 2), over the scenes with two
+    agents or more: Col-I, a predicted path within :data:`COLLISION_DISTANCE` (<=) of another
+    agent's predicted path at the same moment; Col-II, of another agent's true path. TrajNet++
+    scores each scene's primary agent (its first: ``col_pred_primary``, ``col_truth_primary``);
+    ``col_pred`` and ``col_truth`` take the share of all those scenes' agents. 0 where no scene
+    has two agents."""
     pred, true = _densified(point), _densified(truth)
-    hits = {"col_pred": [], "col_truth": []}
+    names = ("col_pred", "col_truth")
+    hits: dict[str, list] = {name: [] for name in (*names, *(f"{n}_primary" for n in names))}
     for first, end in zip(scene_start[:-1], scene_start[1:], strict=True):
         if end - first < 2:
             continue
         mine = pred[:, first:end]
         others = np.eye(end - first, dtype=bool)[None]  # an agent never collides with itself
-        for name, theirs in (("col_pred", mine), ("col_truth", true[:, first:end])):
+        for name, theirs in zip(names, (mine, true[:, first:end]), strict=True):
             gaps = np.linalg.norm(mine[:, :, None] - theirs[:, None], axis=-1)  # (T', n, n)
-            close = (gaps < COLLISION_DISTANCE) & ~others
-            hits[name].append(close.any(axis=(0, 2)))
+            hit = ((gaps <= COLLISION_DISTANCE) & ~others).any(axis=(0, 2))
+            hits[name].append(hit)
+            hits[f"{name}_primary"].append(hit[:1])
     return {
         name: float(np.concatenate(found).mean()) if found else 0.0 for name, found in hits.items()
     }

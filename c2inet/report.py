@@ -60,7 +60,8 @@ def summarise(
     # other ways the model predicts (C2INet's C from the posterior): suffixes of its metrics
     out["variants"] = [k.removeprefix("ade_k1_") for k in runs[0] if k.startswith("ade_k1_")]
     suffixes = ["", *(f"_{v}" for v in out["variants"])]
-    measured = ("ade", "fde", "ade_k1", "fde_k1", "ade_draw", "fde_draw", "col_pred", "col_truth")
+    measured = ("ade", "fde", "ade_k1", "fde_k1", "ade_draw", "fde_draw")
+    measured += ("col_pred", "col_truth", "col_pred_primary", "col_truth_primary")
     for metric in (f"{m}{s}" for s in suffixes for m in measured if f"{m}{s}" in runs[0]):
         seen = np.array([average_seen(r[metric]) for r in runs])
         out[f"avg_seen_{metric}"] = _rounded(seen.mean(0))

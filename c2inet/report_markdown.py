@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from c2inet.metrics import COLLISION_DISTANCE
+from c2inet.metrics import COLLISION_DISTANCE, COLLISION_RADIUS
 from c2inet.report import (
     POINT_RULE,
     REFERENCE,
@@ -138,17 +138,20 @@ def _collisions(methods: dict[str, dict[str, Any]], unit: str) -> list[str]:
     collided = [(n, m) for n, m in methods.items() if "avg_seen_col_pred" in m and unit == "m"]
     if not collided:
         return []
-    rows = [["method", "Col-I (predictions)", "Col-II (truths)"]]
+    rows = [["method", "Col-I primary", "Col-II primary", "Col-I all agents", "Col-II all agents"]]
+    keys = ("col_pred_primary", "col_truth_primary", "col_pred", "col_truth")
     rows += [
-        [n, f"{m['avg_seen_col_pred'][-1]:.1%}", f"{m['avg_seen_col_truth'][-1]:.1%}"]
+        [n, *(f"{m[f'avg_seen_{k}'][-1]:.1%}" if f"avg_seen_{k}" in m else "-" for k in keys)]
         for n, m in collided
     ]
     return [
         "",
-        "Collisions of the point prediction after the last task, averaged over the tasks "
-        "(TrajNet++'s: the share of agents with a neighbour whose predicted path comes "
-        f"within {COLLISION_DISTANCE} m of a neighbour's predicted path, Col-I, or true "
-        "path, Col-II; constant velocity, which ignores its neighbours, for comparison):",
+        "Collisions of the point prediction after the last task, averaged over the tasks, as "
+        "TrajNet++ defines them: a predicted path within "
+        f"{COLLISION_DISTANCE:g} m (two radii of {COLLISION_RADIUS:g} m) of a neighbour's "
+        "predicted path (Col-I) or true path (Col-II), at the frames and between them; of each "
+        "scene's primary agent (its first, as TrajNet++ scores) and of all agents of the scenes "
+        "with a neighbour; constant velocity, which ignores its neighbours, for comparison:",
         "",
         markdown_table(rows),
     ]

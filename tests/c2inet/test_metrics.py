@@ -107,7 +107,8 @@ def test_diagnostics_average_over_seeds_and_keep_the_first_queue():
 
 def test_collisions_count_agents_whose_paths_meet_predicted_or_true():
     """Two agents walking head-on through each other between two frames collide (the check
-    reads points between frames); agents a metre apart do not; a lone agent is not counted."""
+    reads the midpoints between frames); agents a metre apart do not; a lone agent is not
+    counted; the primary agent (each scene's first) is scored apart."""
     from c2inet.metrics import collisions
 
     t = np.arange(12, dtype=float)[:, None]
@@ -117,10 +118,39 @@ def test_collisions_count_agents_whose_paths_meet_predicted_or_true():
     point = np.concatenate([meeting, apart, lone], axis=1)  # (12, 5, 2): scenes of 2, 2 and 1
     starts = np.array([0, 2, 4, 5])
     rates = collisions(point, point, starts)
-    assert rates == {"col_pred": 0.5, "col_truth": 0.5}  # 2 of the 4 agents with a neighbour
+    assert rates["col_pred"] == rates["col_truth"] == 0.5  # 2 of the 4 agents with a neighbour
+    assert rates["col_pred_primary"] == 0.5  # 1 of the 2 scenes' primary agents
     truth = point.copy()
     truth[:, 1] += [0.0, 3.0]  # the second truly walked 3 m aside; the first did not
-    assert collisions(point, truth, starts) == {"col_pred": 0.5, "col_truth": 0.25}
+    rates = collisions(point, truth, starts)
+    assert (rates["col_pred"], rates["col_truth"], rates["col_truth_primary"]) == (0.5, 0.25, 0.0)
     truth[:, 0] -= [0.0, 3.0]  # and the first 3 m the other way: no prediction meets a truth
-    assert collisions(point, truth, starts) == {"col_pred": 0.5, "col_truth": 0.0}
-    assert collisions(lone, lone, np.array([0, 1])) == {"col_pred": 0.0, "col_truth": 0.0}
+    assert collisions(point, truth, starts)["col_truth"] == 0.0
+    assert set(collisions(lone, lone, np.array([0, 1])).values()) == {0.0}
+
+
+def test_collisions_are_trajnetpps_own_on_a_fixture():
+    """Col-I and Col-II of each scene's primary agent equal what TrajNet++'s own function
+    (trajnetplusplustools.metrics.collision) says of the same paths, scene by scene, on scenes
+    whose agents pass at 0 to 0.5 m (its 0.2 m threshold, inclusive, and its midpoints)."""
+    metrics = pytest.importorskip("trajnetplusplustools.metrics")
+    from trajnetplusplustools.data import TrackRow
+
+    from c2inet.metrics import collisions
+
+    def rows(path, agent):
+        return [TrackRow(f, agent, float(x), float(y)) for f, (x, y) in enumerate(path, 8)]
+
+    rng = np.random.default_rng(3)
+    for _ in range(60):
+        agents = int(rng.integers(2, 5))
+        t = np.arange(12)[:, None, None]
+        start = rng.uniform(-2, 2, (1, agents, 2))
+        velocity = rng.normal(0, 0.4, (1, agents, 2))
+        point = start + velocity * t + rng.normal(0, 0.05, (12, agents, 2))
+        truth = point + rng.normal(0, 0.3, point.shape)
+        ours = collisions(point, truth, np.array([0, agents]))
+        primary = rows(point[:, 0], 0)
+        col_i = any(metrics.collision(primary, rows(point[:, j], j)) for j in range(1, agents))
+        col_ii = any(metrics.collision(primary, rows(truth[:, j], j)) for j in range(1, agents))
+        assert (ours["col_pred_primary"], ours["col_truth_primary"]) == (col_i, col_ii)
