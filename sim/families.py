@@ -77,14 +77,24 @@ class Windowing:
     val_share: float = 0.0
 
     def __post_init__(self):
-        if not 1 <= self.stride <= 100:
-            raise InputError(f"windows.stride={self.stride!r}: expected an integer in [1, 100]")
-        if not 0 < self.share <= 1:
-            raise InputError(f"windows.share={self.share!r}: expected a number in (0, 1]")
-        if not 1 <= self.min_agents <= 100:
-            raise InputError(f"windows.min_agents={self.min_agents!r}: expected 1 to 100")
-        if not 0 <= self.val_share <= 0.5:
-            raise InputError(f"windows.val_share={self.val_share!r}: expected a number in [0, 0.5]")
+        bounds = {
+            "stride": (1, 100),
+            "share": (0, 1),
+            "min_agents": (1, 100),
+            "val_share": (0, 0.5),
+        }
+        for key, (low, high) in bounds.items():
+            value = getattr(self, key)
+            if not (low < value <= high if key == "share" else low <= value <= high):
+                raise InputError(f"windows.{key}={value!r}: expected {WINDOW_RANGES[key]}")
+
+
+WINDOW_RANGES = {
+    "stride": "an integer in [1, 100]",
+    "share": "a number in (0, 1]",
+    "min_agents": "an integer in [1, 100]",
+    "val_share": "a number in [0, 0.5]",
+}
 
 
 @dataclass(frozen=True)
@@ -221,6 +231,11 @@ def toml_table(raw: dict, key: str, path: Path) -> dict:
 
 def window_options(table: dict[str, Any], where: str, base: Windowing | None = None) -> Windowing:
     """The ``[windows]`` table (or ``--set data.windows.*``) over ``base``, checked."""
+    for key, value in table.items():
+        whole = key in ("stride", "min_agents")
+        kind = int if whole else int | float
+        if key in WINDOW_RANGES and (isinstance(value, bool) or not isinstance(value, kind)):
+            raise InputError(f"{where}: windows.{key}={value!r}: expected {WINDOW_RANGES[key]}")
     return build(Windowing, {**vars(base or Windowing()), **table}, f"{where} [windows]")
 
 

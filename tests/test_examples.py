@@ -48,7 +48,9 @@ def test_the_readmes_snippet_runs_as_pasted_and_leaves_one_run_folder(tmp_path):
     runs = [p for p in (tmp_path / "runs" / "crowd_noise_0.1..0.3").iterdir() if p.name != "latest"]
     assert len(runs) == 1 and (runs[0] / "metrics.json").is_file()
     unguarded = "\n".join(
-        line.removeprefix("    ") for line in readme_snippet().splitlines() if "__main__" not in line
+        line.removeprefix("    ")
+        for line in readme_snippet().splitlines()
+        if "__main__" not in line
     )
     (tmp_path / "other").mkdir()
     (tmp_path / "other" / "unguarded.py").write_text(unguarded)

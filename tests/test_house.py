@@ -145,3 +145,35 @@ def test_the_learner_and_its_tests_load_and_train_without_the_simulators(tmp_pat
     summary = done.stdout.strip().splitlines()[-1]
     assert re.search(r"^1 passed, \d+ deselected", summary), summary
     assert "error" not in summary, summary
+
+
+MAX_FILE_LINES, MAX_FUNCTION_LINES = 400, 60
+
+
+def oversized(source: str, name: str) -> list[str]:
+    """What of ``source`` breaks the size bars: the file over 400 lines, a function over 60."""
+    found = []
+    lines = len(source.splitlines())
+    if lines > MAX_FILE_LINES:
+        found.append(f"{name}: {lines} lines")
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+            length = node.end_lineno - node.lineno + 1
+            if length > MAX_FUNCTION_LINES:
+                found.append(f"{name}:{node.lineno} {node.name}: {length} lines")
+    return found
+
+
+def test_no_module_or_function_outgrows_the_size_bars():
+    """Every module of the packages at most 400 lines, every function at most 60; the check
+    itself fails a planted 61-line function."""
+    planted = "def long():\n" + "    x = 1\n" * 59 + "    return x\n"
+    assert oversized(planted, "planted") == ["planted:1 long: 61 lines"]
+    assert oversized(planted.replace("    x = 1\n", "", 1), "planted") == []
+    found = [
+        problem
+        for package in ("c2inet", "sim", "viz")
+        for path in sorted((ROOT / package).rglob("*.py"))
+        for problem in oversized(path.read_text(), str(path.relative_to(ROOT)))
+    ]
+    assert not found, found

@@ -68,7 +68,7 @@ def test_a_read_only_install_and_home_compile_without_a_cache(tmp_path):
     home.mkdir()
     mounts = (
         f"mount --bind {ROOT} {ROOT} && mount -o remount,bind,ro {ROOT} && "
-        f"mount --bind {home} {home} && mount -o remount,bind,ro {home} && exec \"$@\""
+        f'mount --bind {home} {home} && mount -o remount,bind,ro {home} && exec "$@"'
     )
     env = {**base_env(home), "PYTHONDONTWRITEBYTECODE": "1"}
     done = step(env, ("unshare", "-m", "sh", "-c", mounts, "sh"))

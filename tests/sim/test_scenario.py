@@ -232,3 +232,50 @@ def test_a_training_share_keeps_the_first_training_windows_only(tmp_path):
     )
     (spec,) = parse_scenario("tenth_0.1", [tmp_path])
     assert spec.family.share == 0.1
+
+
+def test_windows_drop_lone_agents_when_asked_and_hold_out_a_validation_share(tmp_path):
+    """``windows.min_agents = 2`` (sgan's windows, ``eth_ucy_loo``'s default) drops every window
+    with one agent, in every split; ``1`` keeps them. ``windows.val_share`` holds the training
+    windows' last share out as the validation split of a family without one, the windows that
+    share frames with it dropped from training."""
+    from sim.experiment.curriculum import learner_tasks
+
+    (kept,) = learner_tasks("eth_ucy_loo_eth", data={"windows.min_agents": 1}, cache=tmp_path)
+    (sgan,) = learner_tasks("eth_ucy_loo_eth", cache=tmp_path)  # the family's default: 2
+    for split in ("train", "val", "test"):
+        lone = (getattr(kept, split).agents_per_scene == 1).sum()
+        assert lone > 0 and (getattr(sgan, split).agents_per_scene >= 2).all()
+        assert len(getattr(sgan, split)) == len(getattr(kept, split)) - lone
+    assert len(sgan.test) == 70  # sgan's ETH test set: 70 windows
+    (whole,) = learner_tasks("eth_ucy_eth", cache=tmp_path)
+    assert whole.val is None
+    (held,) = learner_tasks("eth_ucy_eth", data={"windows.val_share": 0.2}, cache=tmp_path)
+    assert len(held.val) == -(-len(whole.train) * 2 // 10)
+    np.testing.assert_array_equal(held.val.positions, whole.train.subset(
+        np.arange(len(whole.train) - len(held.val), len(whole.train))).positions)  # fmt: skip
+    assert len(held.train) == len(whole.train) - len(held.val) - 19  # 19 overlap the first
+    for bad in ({"windows.min_agents": 0}, {"windows.val_share": 0.9}):
+        with pytest.raises(InputError, match="windows"):
+            parse_scenario("eth_ucy_eth", overrides=bad)
+
+
+def test_a_familys_train_table_is_the_learners_default_under_set_and_flags():
+    """``eth_ucy_loo``'s ``[train]`` table is what its runs train with; ``--set train.KEY`` and
+    ``--epochs`` override it; families that disagree on it are one line; sizes below the
+    family's are labelled reduced."""
+    from sim.experiment import ExperimentConfig
+
+    config = ExperimentConfig("eth_ucy_loo_zara1", ("finetune",))
+    train = config.train_config()
+    assert (config.epochs, train.k_train, train.select, train.schedule) == (60, 20, "val", "cosine")
+    assert config.size == "full"
+    lower = ExperimentConfig(
+        "eth_ucy_loo_zara1", ("finetune",), epochs=5, settings={"train": {"select": "last"}}
+    )
+    assert lower.train_config().select == "last" and lower.epochs == 5
+    assert lower.size == "reduced (5 of 60 epochs)"
+    with pytest.raises(InputError, match="set different \\[train\\] defaults"):
+        ExperimentConfig("eth_ucy_loo_zara1+crowd_noise_0.1", ("finetune",))
+    half = ExperimentConfig("crowd_noise_0.1", ("cv",), settings={"data": {"splits.train": 150}})
+    assert half.size == "reduced (train 150 of 300 scenes a task)"
