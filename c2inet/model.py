@@ -75,8 +75,11 @@ class Predictor(nn.Module):
         return torch.cat([context.expand(samples, *context.shape), noise], -1)
 
     def nll(self, batch: Batch, pred_rel: torch.Tensor) -> torch.Tensor:
-        """Gaussian negative log-likelihood of the future displacements per agent (S, N)."""
+        """Gaussian negative log-likelihood of the future displacements per agent (S, N), in
+        units of the scene's motion scale or in metres (``loss_units``)."""
         error = pred_rel - (batch.fut_rel / batch.scale)[:, None]
+        if self.config.loss_units == "metres":
+            error = error * batch.scale  # (N, 1) against (12, S, N, 2): each agent's own
         return (error**2).sum(dim=(0, 3)) / (2 * self.config.likelihood_std**2)
 
     def loss(self, batch: Batch, k_train: int = 1) -> LossOutput:

@@ -68,6 +68,10 @@ class ModelConfig:
     # (live in every seed on both curricula of docs/c2inet-study.md; 0 is one key away)
     context_dropout: float = 0.1
     residual: bool = True  # decoder steps change the last displacement (constant-velocity prior)
+    # the units of the likelihood's error (so of the variety loss, and of likelihood_std): the
+    # displacements over their scene's motion scale (scale-free across scenes and domains), or
+    # metres, as STGAT and Social-GAN train and as every error is reported
+    loss_units: str = "scale"
 
     def __post_init__(self):
         if self.backbone not in BACKBONES:
@@ -78,6 +82,7 @@ class ModelConfig:
         choose(self, "c_per", ("agent", "scene"))
         choose(self, "decoder_input", DECODER_INPUTS)
         choose(self, "past_from", PAST_INPUTS)
+        choose(self, "loss_units", ("scale", "metres"))
         require(self, 1, "latent_dim", "z_dim", "c_dim", "n_mc")
         require(self, 0, "beta_c", "beta_z", "beta_x", "free_bits_c", "mi_floor_c", "mi_weight")
         require(self, 0, "likelihood_std", open_low=True)

@@ -105,3 +105,23 @@ def test_selection_needs_a_validation_split():
     with pytest.raises(InputError, match="no validation split"):
         ContinualTrainer(get_method("finetune")(ModelConfig()), tasks, config).run()
     assert math.isfinite(TrainConfig(select="val").select_k)
+
+
+def test_the_likelihood_in_metres_is_the_squared_error_in_metres():
+    """``loss_units = "metres"``: the error the variety loss minimises is each displacement's
+    error in metres (as STGAT trains); the default divides it by the scene's motion scale."""
+    from c2inet.batch import make_batch
+    from c2inet.model import Predictor
+
+    from toys import toy_windows
+
+    batch = make_batch(toy_windows())
+    torch.manual_seed(0)
+    pred = torch.randn(12, 3, batch.obs.shape[1], 2)
+    scaled = Predictor(ModelConfig()).nll(batch, pred)
+    metres = Predictor(ModelConfig(loss_units="metres")).nll(batch, pred)
+    truth = ((pred * batch.scale - batch.fut_rel[:, None]) ** 2).sum(dim=(0, 3)) / (2 * 0.1**2)
+    torch.testing.assert_close(metres, truth)
+    assert not torch.allclose(scaled, metres)
+    with pytest.raises(InputError, match="loss_units"):
+        ModelConfig(loss_units="feet")
