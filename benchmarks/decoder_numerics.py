@@ -76,4 +76,6 @@ def paired(before: list[float], after: list[float]) -> str:
 
 
 if __name__ == "__main__":
-    main()
+    from viz.cli import run_script
+
+    raise SystemExit(run_script(main))

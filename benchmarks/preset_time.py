@@ -64,4 +64,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from viz.cli import run_script
+
+    raise SystemExit(run_script(main))

@@ -48,4 +48,6 @@ def main(argv: list[str]) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    from viz.cli import run_script
+
+    raise SystemExit(run_script(lambda: main(sys.argv[1:])))

@@ -89,9 +89,16 @@ def verdicts(boards: list[Path], reference: str = "finetune") -> str:
     return "\n".join(lines)
 
 
-if __name__ == "__main__":
+def main() -> int:
     if len(sys.argv) < 3:
         print(__doc__.strip().splitlines()[-1], file=sys.stderr)
-        sys.exit(2)
+        return 2
     boards = [Path(arg) for arg in sys.argv[1:]]
     print(table(*boards) if len(boards) == 2 else verdicts(boards))
+    return 0
+
+
+if __name__ == "__main__":
+    from viz.cli import run_script
+
+    raise SystemExit(run_script(main))

@@ -71,6 +71,23 @@ def guarded(main: Callable[..., int]) -> Callable[..., int]:
     return run
 
 
+def run_script(main: Callable[[], Any]) -> int:
+    """A script's entry (``scripts/``, ``benchmarks/``): bad input, a file it cannot read or a
+    value it cannot take is one ``error:`` line and exit 2, never a traceback
+    (``C2I_TRACEBACK=1`` shows it, for a bug)."""
+    try:
+        result = main()
+    except InputError as error:
+        print(f"error: {one_line(str(error))}", file=sys.stderr)
+        return 2
+    except (OSError, ValueError, KeyError, TypeError) as error:
+        if os.environ.get("C2I_TRACEBACK"):
+            raise
+        print(f"error: {type(error).__name__}: {one_line(str(error))[:300]}", file=sys.stderr)
+        return 2
+    return result if isinstance(result, int) else 0
+
+
 def config_path(argv: list[str]) -> Path | None:
     """The ``--config FILE`` of a command line, read as the command's own parser reads it."""
     early = argparse.ArgumentParser(add_help=False)

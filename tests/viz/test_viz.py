@@ -331,3 +331,29 @@ def test_a_figure_drawn_inside_labelled_carries_the_note_and_one_outside_does_no
         for img in (imread(plain), imread(noted))
     ]
     assert red[1].sum() > red[0].sum() + 500  # the note's red letters
+
+
+def test_a_scripts_bad_input_is_one_line_and_exit_2(capsys, monkeypatch):
+    """``viz.cli.run_script``, the entry of every script under scripts/ and benchmarks/: a
+    missing file, a value it cannot read or an InputError is one ``error:`` line and exit 2;
+    ``C2I_TRACEBACK=1`` lets the traceback through."""
+    from c2inet.errors import InputError
+    from viz.cli import run_script
+
+    def missing():
+        return open("/nonexistent/board/results.parquet")
+
+    def bad_value():
+        raise InputError("--seeds 0: expected 1 to 64")
+
+    assert run_script(missing) == 2 and run_script(bad_value) == 2
+    assert run_script(lambda: None) == 0 and run_script(lambda: 3) == 3
+    err = capsys.readouterr().err.splitlines()
+    assert err == [
+        "error: FileNotFoundError: [Errno 2] No such file or directory: "
+        "'/nonexistent/board/results.parquet'",
+        "error: --seeds 0: expected 1 to 64",
+    ]
+    monkeypatch.setenv("C2I_TRACEBACK", "1")
+    with pytest.raises(FileNotFoundError):
+        run_script(missing)
