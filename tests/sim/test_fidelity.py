@@ -109,7 +109,7 @@ def test_the_sim_only_model_never_sees_a_real_training_window(tmp_path):
 
 
 def test_the_pretraining_script_runs_its_three_arms_and_its_committed_table_is_its_own(
-    tmp_path, monkeypatch, script
+    tmp_path, monkeypatch, script, capsys
 ):
     """``scripts/pretrain_transfer.py``: per scene, the tenth alone, the fitted crowd then the
     tenth, the fitted crowd then all (each a ``sim.run`` of fine-tuning), read back from each
@@ -155,3 +155,5 @@ def test_the_pretraining_script_runs_its_three_arms_and_its_committed_table_is_i
         (["--out", "/proc/nowhere/x"], "--out /proc/nowhere/x: cannot create it"),
     ):
         assert pretrain.main(argv) == 2 and len(commands) == 3
+        err = capsys.readouterr().err
+        assert why in err and err.count("\n") == 1

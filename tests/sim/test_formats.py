@@ -280,8 +280,9 @@ def sdd_trajnet_files(folder: Path, metres_per_unit: float = 1.0) -> None:
     ``metres_per_unit``'s inverse: pixels at 1/50 m a pixel when it is 0.02)."""
     for split, scene in (("train", "bookstore_0"), ("train", "gates_1"), ("test", "coupa_0")):
         (folder / split).mkdir(parents=True, exist_ok=True)
+        unit = metres_per_unit
         rows = [
-            f"{12 * t} {agent} {(0.5 * t + 3 * agent) / metres_per_unit:.4f} {agent / metres_per_unit}"
+            f"{12 * t} {agent} {(0.5 * t + 3 * agent) / unit:.4f} {agent / unit}"
             for t in range(30)
             for agent in range(3)
         ]
