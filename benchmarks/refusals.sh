@@ -12,7 +12,7 @@ row() {  # name, then the command
   local name=$1; shift
   timeout 60 "$@" > out.txt 2> err.txt
   local rc=$? lines tb
-  lines=$(grep -v -E '^[[:alnum:] ]+: +[0-9]+%\|' err.txt | grep -c .)  # progress bars aside
+  lines=$(grep -v -E '^([[:alnum:] ]+: +[0-9]+%\||domain [0-9]+/[0-9]+ )' err.txt | grep -c .)  # progress aside
   tb=$(grep -c Traceback err.txt)
   printf '%-44s rc=%-3s stderr lines=%-2s tracebacks=%s  %s\n' "$name" "$rc" "$lines" "$tb" \
     "$(grep -m1 error: err.txt | cut -c1-90)"

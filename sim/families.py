@@ -180,7 +180,8 @@ class Family:
     def holds_files(self, folder: Path) -> bool:
         """Whether ``folder`` holds a file of the first training pattern of any value."""
         patterns = [p for v in self.values.values() for p in v.get("train", [])[:1]]
-        return any(isinstance(p, str) and glob.glob(str(folder / p)) for p in patterns)
+        base = glob.escape(str(folder))  # a folder named with [ or * is a name, not a pattern
+        return any(isinstance(p, str) and glob.glob(f"{base}/{p}") for p in patterns)
 
 
 _noticed: set[Path] = set()  # built-in families replaced by a user's copy, said once

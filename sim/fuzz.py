@@ -87,7 +87,8 @@ def _command(module: str, stubbed: str, argv: list[str]) -> int:
     return _exit(code, err.getvalue())
 
 
-PROGRESS = re.compile(r"^[\w ]+:\s+\d+%\|")  # a progress bar's line in a log, not a message
+# a progress bar's line in a log, or a domain's line as the curriculum is prepared: not a message
+PROGRESS = re.compile(r"^([\w ]+:\s+\d+%\||domain \d+/\d+ )")
 
 
 def _exit(code: int, stderr: str) -> int:

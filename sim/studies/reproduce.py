@@ -98,15 +98,34 @@ def summarise(config: ExperimentConfig, out: Path, execution: Execution) -> dict
                     ).append(cell)
     return {
         "scenes": list(SCENES),
+        "cpu_seconds": job_seconds(config, out),
         "methods": list(config.methods),
         "seeds": config.seeds,
         "k": config.k,
         "epochs": config.epochs,
         "train": {k: v for k, v in vars(config.train_config()).items() if k != "stop_above"},
+        "loss_units": config.model_config().loss_units,
         "quick": config.quick,
         "measured": rows,
         "published": {name: {"minimum": m, "rows": r} for name, (m, r) in PUBLISHED.items()},
     }
+
+
+def job_seconds(config: ExperimentConfig, out: Path) -> dict[str, list[float]]:
+    """Per method, each scene's training and evaluation in CPU seconds (mean over seeds)."""
+    import json
+
+    from sim.experiment.config import Job
+    from sim.experiment.folders import run_root
+
+    seconds: dict[str, list[float]] = {}
+    for method in config.methods:
+        for name in scenarios():
+            folder = out / run_root(name).name / "default"
+            jobs = [Job(method, i).folder(folder) / "result.json" for i in range(config.seeds)]
+            each = [json.loads(job.read_text()).get("cpu_seconds", np.nan) for job in jobs]
+            seconds.setdefault(method, []).append(float(np.mean(each)))
+    return seconds
 
 
 def _scores(config, folder: Path, method: str, seed: int, windows: str, kept) -> dict:
@@ -139,7 +158,8 @@ def reproduce_markdown(report: dict[str, Any]) -> str:
         f"{report['epochs']} epochs, batch {train['batch_scenes']} scenes, lr {train['lr']:g} "
         f"({train['schedule']}, warm-up {train['warmup']:g} epochs, to {train['lr_final']:g} of "
         f"it), variety loss best of {train['k_train']}, selection {train['select']} "
-        f"(best of {train['select_k']})."
+        f"(best of {train['select_k']}), augmentation {train['augment']}, loss in "
+        f"{report.get('loss_units', 'scale')} units."
         + (" **--quick: a smoke test.**" if report["quick"] else ""),
         "",
     ]
@@ -161,7 +181,11 @@ def reproduce_markdown(report: dict[str, Any]) -> str:
                 lines.append(f"| {method}, {label} | {cells} |")
         lines.append("")
     lines += verdict_lines(report)
-    return "\n".join(lines)
+    for method, seconds in report.get("cpu_seconds", {}).items():
+        pairs = zip(report["scenes"], seconds, strict=True)
+        each = ", ".join(f"{scene.upper()} {t / 60:.1f}" for scene, t in pairs)
+        lines.append(f"CPU minutes of one core, {method}: {each} (total {sum(seconds) / 60:.1f}).")
+    return "\n".join(lines) + "\n"
 
 
 def verdict_lines(report: dict[str, Any]) -> list[str]:

@@ -650,7 +650,11 @@ def test_settings_tuned_by_another_benchmark_reach_every_job_and_no_trial_runs(t
         *("--scenario", "crowd_noise_0.1,0.2", "--methods", "finetune,ewc,cv", "--seeds", "2"),
         *("--quick", "--no-record", "--cache", str(tmp_path / "cache"), "--out", str(out)),
     ]
+    capsys.readouterr()
     assert main([*argv, "--tuned-from", str(source)]) == 0
+    said = capsys.readouterr().err
+    assert "--tuned-from: ewc: train.lr=0.0045, ewc.strength=7.5" in said
+    assert "--tuned-from: cv: its defaults" in said
     config = json.loads((out / "evaluation" / "ewc" / "seed_1" / "config.json").read_text())
     assert config["experiment"]["settings"]["train"]["lr"] == 0.0045
     assert config["experiment"]["settings"]["ewc"]["strength"] == 7.5

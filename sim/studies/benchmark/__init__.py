@@ -16,6 +16,7 @@ presets), ``config`` (what is tuned and evaluated, its storage key), ``estimate`
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from c2inet.errors import InputError
@@ -210,6 +211,11 @@ class Benchmark(Study):
             args.sampler,
             args.tuned_from,
         )
+        if bench.borrowed:  # say what is taken from another board, method by method
+            for method, chosen in bench.borrowed[0].items():
+                applied = [f"{s}.{k}={v}" for s, values in chosen["settings"].items()
+                           for k, v in values.items()] or ["its defaults"]  # fmt: skip
+                print(f"--tuned-from: {method}: {', '.join(applied)}", file=sys.stderr)
         if args.estimate:
             print(estimate_table(bench, estimate_bench(bench, execution)))
             return None
