@@ -12,14 +12,23 @@ import numpy as np
 
 from c2inet.data import Windows
 
-AUGMENTATIONS = ("none", "rotate")
+AUGMENTATIONS = ("none", "rotate", "axes")
 
 
-def rotate_scenes(windows: Windows, rng: np.random.Generator) -> Windows:
-    """``windows`` with every scene rotated about the origin by an angle drawn from ``rng``,
-    uniform in [0, 2 pi): all agents of a scene turn together, so their interactions are kept."""
-    angles = np.repeat(rng.uniform(0, 2 * np.pi, len(windows)), windows.agents_per_scene)
-    cos, sin = np.cos(angles)[:, None], np.sin(angles)[:, None]
-    x, y = windows.positions[..., 0], windows.positions[..., 1]
+def augment_scenes(windows: Windows, rng: np.random.Generator, kind: str) -> Windows:
+    """``windows`` with every scene turned about the origin, all its agents together (so their
+    interactions are kept), by ``rng``'s draw: ``rotate``, an angle uniform in [0, 2 pi);
+    ``axes``, a quarter turn (0 to 3) then a mirror image or not, one of the square's eight
+    symmetries, which keep walking along the image's axes along them."""
+    scenes = len(windows)
+    if kind == "rotate":
+        angles, mirror = rng.uniform(0, 2 * np.pi, scenes), np.ones(scenes)
+    else:
+        angles = rng.integers(0, 4, scenes) * (np.pi / 2)
+        mirror = np.where(rng.integers(0, 2, scenes) == 1, -1.0, 1.0)
+    angles = np.repeat(angles, windows.agents_per_scene)[:, None]
+    x = windows.positions[..., 0] * np.repeat(mirror, windows.agents_per_scene)[:, None]
+    y = windows.positions[..., 1]
+    cos, sin = np.round(np.cos(angles), 12), np.round(np.sin(angles), 12)
     turned = np.stack([cos * x - sin * y, sin * x + cos * y], axis=-1)
     return Windows(turned.astype(windows.positions.dtype), windows.scene_start, windows.obs_len)

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from c2inet.augment import AUGMENTATIONS, rotate_scenes
+from c2inet.augment import AUGMENTATIONS, augment_scenes
 from c2inet.batch import Batch, batches
 from c2inet.checkpoints import CheckpointStore, load_checkpoint
 from c2inet.data import Windows
@@ -81,7 +81,8 @@ class TrainConfig:
     # ADE on its own validation split
     select: str = "last"
     select_k: int = 20
-    # each epoch's scenes turned by random angles (c2inet.augment): none, or rotate
+    # each epoch's scenes turned (c2inet.augment): none, rotate (any angle) or axes (quarter
+    # turns and mirror images)
     augment: str = "none"
 
     def __post_init__(self):
@@ -159,8 +160,8 @@ def train_epoch(
     totals: dict[str, float] = {}
     steps, count = 0, math.ceil(len(data) / cfg.batch_scenes)
     lr = cfg.lr
-    if cfg.augment == "rotate":
-        data = rotate_scenes(data, ctx.rng)
+    if cfg.augment != "none":
+        data = augment_scenes(data, ctx.rng, cfg.augment)
     for batch in batches(data, cfg.batch_scenes, ctx.rng, ctx.device):
         if ctx.optimiser is not None:
             elapsed = epoch + steps / count

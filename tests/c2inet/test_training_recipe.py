@@ -125,3 +125,33 @@ def test_the_likelihood_in_metres_is_the_squared_error_in_metres():
     assert not torch.allclose(scaled, metres)
     with pytest.raises(InputError, match="loss_units"):
         ModelConfig(loss_units="feet")
+
+
+@pytest.mark.parametrize("kind", ["rotate", "axes"])
+def test_augmentation_turns_each_scene_whole_and_changes_training(kind):
+    """Every distance within a scene is kept (agents turn together), the headings change, and
+    ``axes`` draws only the square's symmetries; a run with it trains otherwise than without."""
+    from c2inet.augment import augment_scenes
+
+    from toys import toy_windows
+
+    windows = toy_windows(scenes=40)
+    turned = augment_scenes(windows, np.random.default_rng(0), kind)
+    for scene in range(len(windows)):
+        rows = slice(windows.scene_start[scene], windows.scene_start[scene + 1])
+        a, b = windows.positions[rows], turned.positions[rows]
+        gaps = np.linalg.norm(a[:, None] - a[None], axis=-1)
+        np.testing.assert_allclose(np.linalg.norm(b[:, None] - b[None], axis=-1), gaps, atol=1e-4)
+    steps = np.diff(windows.positions, axis=1).reshape(-1, 2)
+    after = np.diff(turned.positions, axis=1).reshape(-1, 2)
+    assert not np.allclose(steps, after, atol=1e-3)
+    if kind == "axes":  # a quarter turn or a mirror: |x| and |y| swap or stay, never mix
+        swapped = np.isclose(np.abs(after), np.abs(steps)[:, ::-1], atol=1e-4).all(1)
+        stayed = np.isclose(np.abs(after), np.abs(steps), atol=1e-4).all(1)
+        assert (swapped | stayed).all()
+    plain = TrainConfig(epochs=1, k=2)
+    runs = [
+        ContinualTrainer(get_method("finetune")(ModelConfig()), turning_tasks(), config).run()
+        for config in (plain, TrainConfig(epochs=1, k=2, augment=kind))
+    ]
+    assert not np.array_equal(runs[0].matrices["ade"], runs[1].matrices["ade"])
