@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import glob
 import itertools
+import sys
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,6 +39,7 @@ from sim.stats import motion_stats, proximity_stats
 WINDOW = OBS_LEN + PRED_LEN
 CHUNK_LINES = 1 << 17  # lines parsed at a time (about 4 MB of text)
 FORMATS = ("ethucy", "sdd", "trajnetpp")
+UNUSUAL_SPEED = 10.0  # units a second: above it, people in metres would be running a sprint
 
 
 @dataclass(frozen=True)
@@ -328,6 +330,14 @@ class FilesGenerator(Generator):
         everything = [s for split in SPLITS for s in scenes[split]]
         stats = motion_stats(everything, knobs["dt"])
         limit = knobs.get("max_speed", 0.0)
+        pixels = knobs.get("format") == "sdd" and "scales" not in knobs and "scale" not in knobs
+        if not limit and not pixels and stats["mean_speed"] > UNUSUAL_SPEED:  # a warning only
+            print(
+                f"warning: domain {name}: its agents move at {stats['mean_speed']:.3g} units/s on "
+                "average; if they are people in metres, the coordinates are in another unit "
+                "(pixels?)",
+                file=sys.stderr,
+            )
         if limit and stats["mean_speed"] > limit:
             raise InputError(
                 f"domain {name}: its agents move at {stats['mean_speed']:.3g} units/s on average, "

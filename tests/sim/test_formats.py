@@ -322,3 +322,18 @@ def test_the_sdd_trajnet_family_reads_the_split_papers_use_in_metres(tmp_path, m
     monkeypatch.setenv("C2I_DATA_ROOT", str(tmp_path / "sdd_trajnet"))
     with pytest.raises(InputError, match="holds what family sdd_trajnet reads"):
         parse_scenario("sdd_bookstore")
+
+
+def test_a_recording_whose_people_sprint_is_warned_of(tmp_path, capsys):
+    """A files family without ``max_speed`` whose agents move at 62.5 units/s (pixels read as
+    metres) builds, with one warning naming the domain and the speed; raw SDD in pixels does not
+    warn (it says it is pixels)."""
+    sdd_trajnet_files(tmp_path / "px", metres_per_unit=0.02)
+    (tmp_path / "fast.toml").write_text(
+        'generator = "files"\n[knobs]\nsplit_gaps = true\n'
+        '[values.a]\ntrain = ["px/train/*.txt"]\ntest = ["px/test/*.txt"]\n'
+    )
+    domain = build_domain(parse_scenario("fast_a", [tmp_path])[0], 0)
+    assert domain.stats["mean_speed"] == pytest.approx(62.5)
+    err = capsys.readouterr().err
+    assert err.count("warning: domain fast_a: its agents move at 62.5 units/s") == 1
