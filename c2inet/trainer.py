@@ -28,7 +28,7 @@ from c2inet.diagnostics import diagnose
 from c2inet.errors import InputError
 from c2inet.evaluation import evaluate, evaluate_all
 from c2inet.methods.base import Method, TaskContext
-from c2inet.metrics import average_seen
+from c2inet.metrics import average_seen, forgetting_final
 from c2inet.options import Tunable, check_range, choose, require
 from c2inet.schedule import SCHEDULES, learning_rate, set_learning_rate
 from c2inet.selection import SELECTIONS, BestEpoch
@@ -173,6 +173,24 @@ def train_epoch(
     return {**{k: v / max(steps, 1) for k, v in totals.items()}, "lr": lr}
 
 
+SUMMARISED = ("ade", "fde", "ade_k1", "fde_k1", "col_pred_primary", "col_truth_primary")
+
+
+def task_summary(matrices: dict[str, np.ndarray], i: int) -> dict[str, float]:
+    """After task ``i``: each metric averaged over the tasks seen so far (``seen/METRIC``, the
+    paper's Table-2 number; after the last task the run's final score) and the forgetting of
+    ADE so far (``forgetting/METRIC``: each earlier task's error now minus its best before, the
+    mean; 0 after the first task). What a tracker's table of runs sorts by."""
+    out = {
+        f"seen/{m}": float(np.mean(matrices[m][i, : i + 1])) for m in SUMMARISED if m in matrices
+    }
+    for m in ("ade", "ade_k1"):
+        if m in matrices:
+            lost = forgetting_final(matrices[m][: i + 1, : i + 1]) if i else np.zeros(1)
+            out[f"forgetting/{m}"] = float(np.mean(lost))
+    return out
+
+
 class ContinualTrainer:
     """Runs one method through a curriculum and fills the task-by-task error matrices."""
 
@@ -263,6 +281,7 @@ class ContinualTrainer:
                 "task": i,
                 "name": self.tasks[i].name,
                 "row": {m: result.matrices[m][i].tolist() for m in result.matrices},
+                "summary": task_summary(result.matrices, i),
                 "model": model,
                 "diagnostics": result.diagnostics[i] if result.diagnostics else {},
             },

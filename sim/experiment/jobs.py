@@ -202,15 +202,23 @@ def drawer(job: Job, config: ExperimentConfig, inputs: JobInputs, folder: Path, 
 
 
 def job_params(job: Job, config: ExperimentConfig) -> dict[str, Any]:
-    """What a tracker logs as the job's hyper-parameters: the experiment, the resolved model
-    and training options, the method's own, and the job's method and seed."""
+    """What a tracker logs as the job's hyper-parameters: the experiment, its sizes (quick,
+    reduced or full, scenes per split, every ``--set data.*``), the resolved model and training
+    options, the method's own, and the job's method and seed."""
     train = asdict(config.train_config(job.seed_index))
     tree = {
         "scenario": config.scenario,
         "method": job.method,
         "seed": train.pop("seed"),
+        "quick": config.quick,
+        "size": config.size,
         "model": asdict(config.model_config()),
         "train": train,
+        "data": config.settings.get("data", {}),  # every --set data.KEY given
+        "splits": {  # the scenes per split of the first domain (a family's, or --set's)
+            split: getattr(config.specs[0].family.splits, split)
+            for split in ("train", "val", "test")
+        },
         job.method: config.settings.get(job.method, {}),
     }
     return flat_params(tree)

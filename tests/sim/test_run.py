@@ -336,6 +336,14 @@ def test_loggers_write_the_numbers_of_metrics_json(tmp_path, capsys):
     assert (out / "mlartifacts").is_dir()  # beside the store, not in the working directory
     assert tracked.data.tags["c2i_job"] == "jobs/finetune/seed_0"
     assert tracked.data.params["train.lr"] == "0.002" and tracked.data.params["seed"] == "0"
+    # what the runs table sorts and compares by (issue 65): the final scores, the sizes
+    final = tracked.data.metrics  # each metric's latest value: after the last task
+    assert final["seen/ade"] == pytest.approx(sum(metrics["ade"][1]) / 2, rel=1e-6)
+    lost = metrics["ade"][1][0] - metrics["ade"][0][0]
+    assert final["forgetting/ade"] == pytest.approx(lost, abs=2e-6)  # metrics.json: 6 places
+    assert {"seen/ade_k1", "seen/col_pred_primary", "forgetting/ade_k1"} <= set(final)
+    assert tracked.data.params["quick"] == "True" and tracked.data.params["size"] == "quick"
+    assert tracked.data.params["splits.train"] == "300"
     history = client.get_metric_history(tracked.info.run_id, "matrix_ade/crowd_noise_0.1")
     assert [(m.step, m.value) for m in history if m.step == 3] == [
         (3, pytest.approx(metrics["ade"][1][0], rel=1e-6))

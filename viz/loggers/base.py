@@ -154,6 +154,8 @@ def scalars(event: str, data: dict[str, Any], epochs: int, tasks: list[str]) -> 
                 yield step, f"matrix_{metric}/{name}", float(value)
         for key, value in diagnostic_scalars(data.get("diagnostics") or {}):
             yield step, f"diagnostics/{key}", value
+        for key, value in (data.get("summary") or {}).items():  # seen/ade, forgetting/ade...
+            yield step, key, float(value)
 
 
 def flat_params(tree: dict[str, Any], prefix: str = "") -> dict[str, str | int | float | bool]:
