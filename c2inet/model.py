@@ -36,10 +36,11 @@ from c2inet.prior import LearnablePrior, PriorQueue, QueueConfig
 
 
 class LossOutput(NamedTuple):
-    """A training step's loss, its parts for the logs, and the model output it came from."""
+    """A training step's loss, its parts for the logs (detached scalars, or floats), and the
+    model output it came from."""
 
     loss: torch.Tensor
-    parts: dict[str, float]
+    parts: dict[str, torch.Tensor | float]
     output: torch.Tensor  # predicted normalised future displacements (12, S, N, 2)
 
 
@@ -87,7 +88,7 @@ class Predictor(nn.Module):
         cond = self._context_with_noise(self.context(batch), k_train)
         pred = self.decode(batch, cond)
         loss = variety_loss(self.nll(batch, pred), batch)
-        return LossOutput(loss, {"nll": loss.item()}, pred)
+        return LossOutput(loss, {"nll": loss.detach()}, pred)
 
     def point(self, batch: Batch) -> torch.Tensor:
         """The noise-free prediction, normalised displacements (12, N, 2), differentiable: what
@@ -334,30 +335,30 @@ class C2INetModel(Predictor):
         per_agent = cfg.beta_z * kl_z
         kl_c_cost = kl_c.clamp_min(cfg.free_bits_c) if cfg.free_bits_c else kl_c
         parts = {
-            "nll": future.item(),
-            "kl_c": kl_c.mean().item(),
+            "nll": future.detach(),
+            "kl_c": kl_c.mean().detach(),
             # the share of scenes whose KL_C, above the free bits, has a gradient: where the
             # queue's prior (Eq 17) shapes training
-            "kl_c_binding": (kl_c > cfg.free_bits_c).float().mean().item()
+            "kl_c_binding": (kl_c > cfg.free_bits_c).float().mean().detach()
             if cfg.free_bits_c
             else 1.0,
-            "kl_z": batch.per_scene_mean(kl_z).mean().item(),
+            "kl_z": batch.per_scene_mean(kl_z).mean().detach(),
         }
         if cfg.beta_x:  # the past reconstruction, only where it is weighted
             past = self.reconstruct_past(z[:mc], self.per_agent(c[:mc], batch))
             past_error = past - (batch.obs_rel[1:] / batch.scale)[:, None]
             nll_x = (past_error**2).sum(dim=(0, 3)).mean(0) / (2 * cfg.likelihood_std**2)
             per_agent = per_agent + cfg.beta_x * nll_x
-            parts["nll_past"] = batch.per_scene_mean(nll_x).mean().item()
+            parts["nll_past"] = batch.per_scene_mean(nll_x).mean().detach()
         loss = future + batch.per_scene_mean(per_agent).mean() + cfg.beta_c * kl_c_cost.mean()
         if cfg.mi_floor_c and cfg.mi_weight:  # an n x n estimate: only where it is asked for
             mi = minibatch_mutual_information(c[:mc], post.c_mean, post.c_logvar)
             loss = loss + cfg.mi_weight * (cfg.mi_floor_c - mi).clamp_min(0)
-            parts["mi_c"] = mi.item()
+            parts["mi_c"] = mi.detach()
         if anchors is not None:
             for name, held in self._held(anchors, anchor_future, hold_encoder).items():
                 loss = loss + self.queue.config.distill_weight * held
-                parts[name] = held.item()
+                parts[name] = held.detach()
         return LossOutput(loss, parts, pred)
 
     def point(self, batch: Batch) -> torch.Tensor:

@@ -137,7 +137,9 @@ def start_training(method: Method, cfg: TrainConfig):
 def train_step(
     method: Method, ctx: TaskContext, batch: Batch, cfg: TrainConfig
 ) -> dict[str, float]:
-    """One optimiser step on ``batch`` with the method's step hooks; returns the loss's parts."""
+    """One optimiser step on ``batch`` with the method's step hooks; returns the loss's parts
+    (floats, or detached scalars on the model's device that :func:`train_epoch` reads once an
+    epoch: a step reads nothing back to the host for its logs)."""
     ctx.batch = batch
     ctx.loss, ctx.parts, ctx.output = method.step_loss(ctx, batch, cfg.k_train)
     method.before_backward(ctx)
@@ -168,9 +170,9 @@ def train_epoch(
             lr = learning_rate(cfg.lr, cfg.schedule, elapsed, cfg.epochs, cfg.warmup, cfg.lr_final)
             set_learning_rate(ctx.optimiser, lr)
         for key, value in train_step(method, ctx, batch, cfg).items():
-            totals[key] = totals.get(key, 0.0) + value
+            totals[key] = totals.get(key, 0.0) + value  # on the device: no read per step
         steps += 1
-    return {**{k: v / max(steps, 1) for k, v in totals.items()}, "lr": lr}
+    return {**{k: float(v) / max(steps, 1) for k, v in totals.items()}, "lr": lr}
 
 
 SUMMARISED = ("ade", "fde", "ade_k1", "fde_k1", "col_pred_primary", "col_truth_primary")

@@ -58,9 +58,10 @@ class TaskContext:
         return model_device(self.model)
 
     def add_loss(self, name: str, value: torch.Tensor) -> None:
-        """Add a penalty to the step's loss, logged as ``name``."""
+        """Add a penalty to the step's loss, logged as ``name`` (kept on the device: the
+        trainer reads the parts once an epoch, not at every step)."""
         self.loss = self.loss + value
-        self.parts[name] = value.item()
+        self.parts[name] = value.detach()
 
 
 TASK_HOOKS = ("before_task", "after_task")

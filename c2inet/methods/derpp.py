@@ -93,7 +93,7 @@ class DERPP(Method):
             "replay_outputs": self.options.alpha * drift,
             "replay": self.options.beta * variety_loss(model.nll(replay, replayed), replay),
         }
-        parts = {name: value.item() for name, value in terms.items()}
+        parts = {name: value.detach() for name, value in terms.items()}
         return LossOutput(sum(terms.values()), parts, samples[:, :, :own])
 
     def _offer(self, ctx: TaskContext) -> None:

@@ -73,7 +73,7 @@ class EndpointCVAE(Predictor):
         fit = variety_loss(path_error + ((pred.sum(0) - end) ** 2).sum(-1), batch)
         kl = batch.per_scene_mean(kl_standard_normal(mean, logvar)).mean()
         loss = fit + self.options.kl_weight * kl
-        return LossOutput(loss, {"nll": fit.item(), "kl_z": kl.item()}, pred)
+        return LossOutput(loss, {"nll": fit.detach(), "kl_z": kl.detach()}, pred)
 
     @torch.no_grad()
     def predict(self, batch: Batch, samples: int) -> torch.Tensor:

@@ -155,3 +155,35 @@ def test_augmentation_turns_each_scene_whole_and_changes_training(kind):
         for config in (plain, TrainConfig(epochs=1, k=2, augment=kind))
     ]
     assert not np.array_equal(runs[0].matrices["ade"], runs[1].matrices["ade"])
+
+
+@pytest.mark.parametrize("name", ["finetune", "c2inet-online", "derpp", "pecnet", "ewc"])
+def test_a_training_step_reads_no_number_back_for_its_logs(monkeypatch, name):
+    """Issue 65: a step keeps its loss parts on the model's device (a read back to the host is a
+    GPU sync); the epoch reads each part once. Counted: ``Tensor.item`` and ``float(tensor)``
+    during steps (C2INet-online's second task, anchors and queue acting, included)."""
+    from c2inet import trainer
+
+    reads = []
+    for attribute in ("item", "__float__"):
+        real = getattr(torch.Tensor, attribute)
+
+        def counted(self, *args, _real=real, _name=attribute):
+            reads.append(_name)
+            return _real(self, *args)
+
+        monkeypatch.setattr(torch.Tensor, attribute, counted)
+    real_step = trainer.train_step
+    per_step = []
+
+    def step(*args, **kwargs):
+        before = len(reads)
+        parts = real_step(*args, **kwargs)
+        per_step.append(len(reads) - before)
+        return parts
+
+    monkeypatch.setattr(trainer, "train_step", step)
+    config = TrainConfig(epochs=2, k=2, diagnostics=False, val_every=0)
+    result = ContinualTrainer(get_method(name)(ModelConfig()), turning_tasks(), config).run()
+    assert per_step and set(per_step) == {0}, per_step
+    assert all(type(v) in (int, float) for r in result.history for v in r.values())  # no tensor
