@@ -7,6 +7,8 @@ Ray is an optional extra (``pip install '.[ray]'``), imported only when asked fo
 
 from __future__ import annotations
 
+import ast
+import inspect
 import multiprocessing
 import os
 import pickle
@@ -213,9 +215,6 @@ def check_guarded_main(jobs: int) -> None:
     path = getattr(main, "__file__", None)
     if jobs <= 1 or path is None or not Path(path).is_file():
         return
-    import ast
-    import inspect
-
     lines = [f.lineno for f in inspect.stack(0) if f.filename == path and f.function == "<module>"]
     if not lines:
         return

@@ -92,10 +92,10 @@ def make_tasks(
     """Domains of the curriculum as learner tasks (windows per split)."""
     tasks, domains = [], []
     for i, spec in enumerate(specs, 1):
-        splits = _splits(spec, quick)
-        cached = cache is not None and cache_path(spec, seed, cache, splits).is_file()
+        counts = _splits(spec, quick)  # the scenes a split, where quick sets them
+        cached = cache is not None and cache_path(spec, seed, cache, counts).is_file()
         started = time.perf_counter()
-        domain = build_domain(spec, seed, cache, splits, workers, memory_budget)
+        domain = build_domain(spec, seed, cache, counts, workers, memory_budget)
         how = "read from the cache" if cached else f"made in {time.perf_counter() - started:.1f} s"
         sizes = "/".join(str(len(domain.scenes[split])) for split in SPLITS)
         print(f"domain {i}/{len(specs)} {domain.name}: {how} ({sizes} scenes)", file=sys.stderr)
