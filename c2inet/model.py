@@ -36,8 +36,7 @@ from c2inet.prior import LearnablePrior, PriorQueue, QueueConfig
 
 
 class LossOutput(NamedTuple):
-    """A training step's loss, its parts for the logs (detached scalars, or floats), and the
-    model output it came from."""
+    """A training step's loss, its parts for the logs (detached scalars), and its model output."""
 
     loss: torch.Tensor
     parts: dict[str, torch.Tensor | float]
