@@ -117,18 +117,18 @@ def domain_windows(domain, windowing: Windowing) -> dict[str, Windows | None]:
     the training windows' last ``val_share`` held out as one (the windows that share frames
     with it dropped from training, so that no validation frame is trained on)."""
     keep = windowing.min_agents
-    splits = {split: domain.windows(split, 1, 1.0, keep) for split in SPLITS}
-    train = domain.windows("train", windowing.stride, windowing.share, keep)
-    if splits["val"] is None and windowing.val_share > 0 and splits["train"] is not None:
-        every = splits["train"]
+    splits = {split: domain.windows(split, 1, 1.0, keep) for split in ("val", "test")}
+    every = domain.windows("train", 1, 1.0, keep)
+    if splits["val"] is None and windowing.val_share > 0 and every is not None:
         cut = len(every) - math.ceil(windowing.val_share * len(every))
         splits["val"] = every.subset(np.arange(cut, len(every)))
         gap = max(cut - (OBS_LEN + PRED_LEN - 1), 0)  # a window shares frames with the 19 before
         train = every.subset(np.arange(0, gap, windowing.stride))
         if windowing.share < 1:
             train = train.subset(np.arange(math.ceil(windowing.share * len(train))))
-    splits["train"] = train
-    return splits
+    else:
+        train = domain.windows("train", windowing.stride, windowing.share, keep)
+    return {"train": train, **splits}
 
 
 def _first(windows: Windows | None, count: int) -> Windows | None:
