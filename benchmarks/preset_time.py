@@ -44,7 +44,9 @@ def main() -> None:
         settings=parse_settings(args.settings),
         record=False,
     )
-    bench = BenchConfig(base, args.preset, preset.tune_scenario, args.trials)
+    bench = BenchConfig(
+        base, name=args.preset, tune_scenario=preset.tune_scenario, trials=args.trials
+    )
     cost = estimate_bench(bench, Execution(jobs=args.jobs, cache=Path(".cache/domains")))
     trial, job, trials, seeds = cost["trial"], cost["job"], cost["trials"], cost["seeds"]
     spent = {m: trials.get(m, 0) * trial.get(m, 0) + seeds[m] * job[m] for m in methods}

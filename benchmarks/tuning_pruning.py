@@ -42,7 +42,7 @@ def main() -> None:
     preset = PRESETS[args.preset]
     methods = tuple(args.methods.split(","))
     base = ExperimentConfig(preset.scenario, methods=methods, quick=args.quick, record=False)
-    tuning = BenchConfig(base, preset.tune_scenario, args.trials).tuning()
+    tuning = BenchConfig(base, tune_scenario=preset.tune_scenario, trials=args.trials).tuning()
     execution = Execution(jobs=args.jobs, cache=Path(".cache/domains"))
     folders = {True: args.out / f"pruned_warmup{args.warmup}", False: args.out / "full"}
     chosen, wall = {}, {}

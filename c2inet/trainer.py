@@ -34,7 +34,7 @@ from c2inet.schedule import SCHEDULES, learning_rate, set_learning_rate
 from c2inet.selection import SELECTIONS, BestEpoch
 
 # wide enough that no tuned rate sat at a bound at batch 16 or 64 (docs/benchmark.md)
-TRAIN_SPACE = {"train.lr": Tunable(1e-4, 5e-2, log=True)}  # tuned for every method that trains
+TRAIN_SPACE = {"train.lr": Tunable(1e-5, 5e-2, log=True)}  # tuned for every method that trains
 LAST_EPOCH = ("kl_c_binding",)  # loss parts of a task's last epoch kept in its diagnostics
 
 

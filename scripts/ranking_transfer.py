@@ -16,12 +16,11 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import kendalltau
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-from tuning_stability import finals  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from c2inet.errors import InputError  # noqa: E402
 from c2inet.files import write_text_atomic  # noqa: E402
+from sim.studies.benchmark.stability import finals  # noqa: E402
 from viz.cli import guarded  # noqa: E402
 
 RESAMPLES = 2000
@@ -31,7 +30,7 @@ MIN_SEEDS = 3  # fewer seeds on either board give no interval: resampling two dr
 def seed_table(board: Path, methods: list[str]) -> np.ndarray:
     """(seeds, methods): each method's final ADE on the seeds every method of ``methods`` has."""
     final = finals(board)
-    seeds = sorted(set.intersection(*(set(final[m].index) for m in methods)))
+    seeds = sorted(set.intersection(*(set(final[m]) for m in methods)))
     return np.array([[final[m][s] for m in methods] for s in seeds])
 
 

@@ -13,7 +13,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from sim.studies.benchmark.leaderboard import boards_table  # noqa: E402
+from sim.studies.benchmark.board_markdown import boards_table  # noqa: E402
 
 BOARDS = ("radius-protocol", "density", "noise", "traffic", "eth-ucy")  # the protocol's boards
 START, END = "<!-- tuned-table-2: made by scripts/tuned_table.py -->", "<!-- /tuned-table-2 -->"

@@ -1,100 +1,43 @@
-"""Does the benchmark's tuning select? Two boards of one benchmark tuned with different seeds
-(``sim.bench PRESET --tuning-seed N``), evaluated on the same seeds: per method, the final
-point-prediction ADE under each tuning, their paired difference over the shared seeds with its
-95 % interval, and the seed spread (the standard deviation over seeds, the larger of the two).
-The issue's criterion: the difference smaller than the spread, for every method.
+"""Do a board's verdicts survive a second tuning? Two or more boards of one benchmark, each from
+its own independent tuning (``sim.bench PRESET --retune --tuning-seed N --design-offset F``),
+evaluated on the same seeds: each board's Holm verdicts, how many agree, which starred verdicts
+reverse, and each method's difference from fine-tuning over tunings and seeds, the tuning a
+random effect (``sim/studies/benchmark/stability.py``).
 
-Given more than two boards (tunings of one benchmark), it prints instead each method's paired
-difference from fine-tuning under every tuning, and whether its sign holds under all of them:
-a verdict that survives the tuning's draw.
-
-    python scripts/tuning_stability.py bench/radius-protocol bench/radius-tuning-seed-1
-    python scripts/tuning_stability.py BOARD BOARD BOARD ...
+    python scripts/tuning_stability.py BOARD BOARD [...] [--json OUT.json]
 """
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
-
-import numpy as np
-import pandas as pd
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from c2inet.significance import paired  # noqa: E402
-
-
-def finals(board: Path) -> dict[str, pd.Series]:
-    """Per method, the final average point-prediction ADE of each evaluation seed."""
-    rows = pd.read_parquet(board / "results.parquet")
-    rows = rows[rows["metric"] == "ade_k1"]
-    last = list(dict.fromkeys(rows["on_task"]))[-1]  # the curriculum's order
-    final = rows[rows["after_task"] == last]
-    means = final.groupby(["method", "seed"])["value"].mean()
-    return {m: means[m] for m in means.index.get_level_values(0).unique()}
-
-
-def table(a: Path, b: Path) -> str:
-    first, second = finals(a), finals(b)
-    lines = [
-        f"Tuning A: `{a}`; tuning B: `{b}` (final K = 1 ADE, metres, the seeds both evaluated)",
-        "",
-        "| method | seeds | A | B | B minus A [95 % CI] | seed spread (std) | within the spread |",
-        "|---|---|---|---|---|---|---|",
-    ]
-    for method in sorted(set(first) & set(second)):
-        seeds = sorted(set(first[method].index) & set(second[method].index))
-        x, y = first[method][seeds].to_numpy(), second[method][seeds].to_numpy()
-        result = paired(list(y), list(x))
-        spread = max(np.std(x, ddof=1), np.std(y, ddof=1)) if len(seeds) > 1 else float("nan")
-        low, high = result.interval or (float("nan"), float("nan"))
-        within = "yes" if abs(result.difference) < spread else "no"
-        lines.append(
-            f"| {method} | {len(seeds)} | {x.mean():.3f} | {y.mean():.3f} | "
-            f"{result.difference:+.3f} [{low:+.3f}, {high:+.3f}] | {spread:.3f} | {within} |"
-        )
-    return "\n".join(lines)
-
-
-def verdicts(boards: list[Path], reference: str = "finetune") -> str:
-    """Each method minus ``reference`` (paired over each board's seeds) under every tuning, and
-    whether its side holds under all of them (with how many intervals are clear of 0)."""
-    finals_of = [finals(board) for board in boards]
-    methods = sorted(set.intersection(*(set(f) for f in finals_of)) - {reference})
-    names = [
-        board.name if board.name not in ("A", "B") else f"{board.parent.name}/{board.name}"
-        for board in boards
-    ]
-    lines = [
-        f"Each method's final K = 1 ADE minus {reference}'s, paired over the seeds, under each "
-        f"of {len(boards)} tunings (metres; `*`: the 95 % interval clear of 0)",
-        "",
-        "| method | " + " | ".join(names) + " | under every tuning |",
-        "|---|" + "---|" * (len(boards) + 1),
-    ]
-    for method in methods:
-        cells, differences, clear = [], [], 0
-        for final in finals_of:
-            seeds = sorted(set(final[method].index) & set(final[reference].index))
-            result = paired(list(final[method][seeds]), list(final[reference][seeds]))
-            low, high = result.interval or (0.0, 0.0)
-            clear += low > 0 or high < 0
-            differences.append(result.difference)
-            cells.append(f"{result.difference:+.3f}{' *' if low > 0 or high < 0 else ''}")
-        side = {1.0: "behind", -1.0: "ahead"}.get(float(np.sign(differences).mean()), "")
-        held = f"{side} ({clear} of {len(boards)} clear of 0)" if side else "no: it changes side"
-        lines.append(f"| {method} | " + " | ".join(cells) + f" | {held} |")
-    return "\n".join(lines)
+from c2inet.errors import InputError  # noqa: E402
+from sim.studies.benchmark.stability import stability, stability_markdown  # noqa: E402
 
 
 def main() -> int:
-    if len(sys.argv) < 3:
-        print(__doc__.strip().splitlines()[-1], file=sys.stderr)
-        return 2
-    boards = [Path(arg) for arg in sys.argv[1:]]
-    print(table(*boards) if len(boards) == 2 else verdicts(boards))
+    args = sys.argv[1:]
+    out = None
+    if "--json" in args:
+        i = args.index("--json")
+        if i + 1 >= len(args):
+            raise InputError("--json: name the file to write")
+        out, args = Path(args[i + 1]), args[:i] + args[i + 2 :]
+    if len(args) < 2:
+        raise InputError("give two boards or more (each its own tuning, the same seeds)")
+    boards = [Path(arg) for arg in args]
+    for board in boards:
+        if not (board / "leaderboard.json").is_file() or not (board / "results.parquet").is_file():
+            raise InputError(f"{board}: not a board (no leaderboard.json and results.parquet)")
+    result = stability(boards)
+    print(stability_markdown(result), end="")
+    if out is not None:
+        out.write_text(json.dumps(result, indent=1) + "\n")
     return 0
 
 

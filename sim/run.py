@@ -33,6 +33,23 @@ EXAMPLES = """\
   python -m sim.run --scenario crowd_noise_0.1..0.6 --resume   # continue the latest run"""
 
 
+def with_tuning(args, options: dict) -> dict:
+    """``--tuned-from``: a tuning's settings (and a preset's board sizes) under the user's own."""
+    if not args.tuned_from:
+        return options
+    from sim.scenario import parse_scenario
+    from sim.studies.benchmark.artefacts import tuned_settings
+
+    tasks = len(parse_scenario(args.scenario, list(options["scenarios_dir"])))
+    tuned, source = tuned_settings(args.tuned_from, options["methods"], tasks)
+    given = options["settings"]
+    settings = {
+        scope: {**tuned.get(scope, {}), **given.get(scope, {})} for scope in {*tuned, *given}
+    }
+    print(f"--tuned-from {source}: {tuned}", file=sys.stderr)
+    return {**options, "settings": settings}
+
+
 @guarded
 def main(argv: list[str] | None = None) -> int:
     p = parser("sim.run", __doc__.splitlines()[0], EXAMPLES)
@@ -43,6 +60,12 @@ def main(argv: list[str] | None = None) -> int:
         metavar="spawn|connect[=URL]",
         help="also stream live to a viewer: spawn one, or connect to one (default URL "
         "rerun+http://127.0.0.1:9876/proxy)",
+    )
+    p.add_argument(
+        "--tuned-from",
+        metavar="PRESET|FILE",
+        help="the settings a tuning chose for these methods: a preset's shipped tuning (e.g. "
+        "radius), an artefact or a board's tuning.json; --set and --config win over them",
     )
     p.add_argument(
         "--print-config",
@@ -58,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     from sim.experiment import ExperimentConfig, run_experiment
     from sim.experiment.folders import output_folder
 
-    config = ExperimentConfig(args.scenario, **experiment_options(args))
+    config = ExperimentConfig(args.scenario, **with_tuning(args, experiment_options(args)))
     execution = execution_of(args)
     if args.print_config:
         print(resolved_config(config, execution), end="")

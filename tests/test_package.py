@@ -94,6 +94,7 @@ def test_a_wheel_in_a_fresh_environment_generates_domains_anywhere(tmp_path, mon
     assert "sim/scenarios/crowd_noise.toml" in names
     assert "sim/scenarios/data/eth_ucy/hotel/val/biwi_eth_val.txt" in names
     assert "sim/scenarios/data/orca/radius_0.3_test.txt" in names
+    assert "sim/studies/benchmark/tunings/radius.json" in names  # the shipped tunings
     assert any(n.endswith("LICENSE") for n in names)
     venv = tmp_path / "venv"
     run(sys.executable, "-m", "venv", "--without-pip", venv)  # this pip installs into it

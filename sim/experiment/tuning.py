@@ -149,7 +149,7 @@ def _round_size(finished: int, trials: int, prune: bool) -> int:
     return 1
 
 
-def _defaults(
+def default_params(
     method: str, space: dict[str, Tunable | Choice], base: ExperimentConfig
 ) -> dict[str, Any]:
     """The values the base configuration gives the searched options: the first trial."""
@@ -239,7 +239,7 @@ def run_tuning(
             space, count = search_space(method), len(finished(method))
             study = studies[method]
             if count == 0 and not study.get_trials(deepcopy=False, states=(TrialState.WAITING,)):
-                study.enqueue_trial(_defaults(method, space, base))  # the defaults come first
+                study.enqueue_trial(default_params(method, space, base))  # the defaults come first
             for index in range(count, count + _round_size(count, tune.trials, tune.prune)):
                 study.sampler = _sampler(base.seed, method, index, tune.trials, tune.sampler)
                 trial = study.ask({key: _distribution(s) for key, s in space.items()})

@@ -83,3 +83,34 @@ def test_seeds_are_added_until_the_interval_is_narrow_and_not_after():
     sd = noisy.std(ddof=1)
     width = [2 * stats.t.ppf(0.975, n - 1) * sd / np.sqrt(n) for n in (needed - 1, needed)]
     assert width[0] >= 0.01 > width[1]
+
+
+def test_the_sign_flip_test_is_exact_and_needs_ten_seeds_for_a_board_of_sixteen():
+    from c2inet.significance import sign_flip
+
+    assert sign_flip([0.01] * 10) == pytest.approx(2 / 2**10)  # every sign the same: the floor
+    assert sign_flip([0.01] * 8) * 16 > 0.05  # at 8 seeds Holm over 16 can never star it
+    assert sign_flip([0.01] * 10) * 16 < 0.05
+    symmetric = [0.02, -0.02, 0.01, -0.01, 0.03, -0.03]
+    assert sign_flip(symmetric) == pytest.approx(1.0)
+    assert sign_flip([0.0, 0.0, 0.0]) is None and sign_flip([0.1]) is None
+    heavy = [0.001, 0.002, -0.001, 0.001, 0.9, 0.002, 0.001, -0.002]  # one wild seed
+    assert sign_flip(heavy) > 0.05  # the permutation test is not carried by one seed
+
+
+def test_the_interval_over_tunings_widens_when_a_planted_second_tuning_disagrees():
+    from c2inet.significance import over_tunings
+
+    rng = np.random.default_rng(3)
+    seeds = rng.normal(0.0, 0.004, 10)
+    first = -0.02 + seeds + rng.normal(0, 0.002, 10)
+    agreeing = over_tunings([first, -0.02 + seeds + rng.normal(0, 0.002, 10)])
+    disagreeing = over_tunings([first, +0.01 + seeds + rng.normal(0, 0.002, 10)])
+    assert agreeing.interval[1] < 0 and agreeing.p_value < 0.01 and agreeing.df > 5
+    low, high = disagreeing.interval
+    assert low < 0 < high and high - low > 5 * (agreeing.interval[1] - agreeing.interval[0])
+    assert disagreeing.df < 2 and (disagreeing.tunings, disagreeing.seeds) == (2, 10)
+    one = paired(list(first), [0.0] * 10)  # one tuning alone: narrow, and blind to the other
+    assert one.interval[1] < 0
+    with pytest.raises(ValueError, match="at least 2 tunings"):
+        over_tunings([first])

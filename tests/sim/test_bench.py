@@ -204,11 +204,12 @@ def test_a_presets_data_sizes_reach_both_curricula_under_the_users_own():
     density = PRESETS["density"]
     assert density.data == {"splits.train": 40}  # many agents a scene: fewer scenes fit the hour
     base = ExperimentConfig(density.scenario, methods=("finetune",))
-    bench = BenchConfig(base, "density", density.tune_scenario, data=density.data)
+    tuning = density.tune_scenario
+    bench = BenchConfig(base, name="density", tune_scenario=tuning, data=density.data)
     for config in (bench.base, bench.tuning().base):
         assert {spec.family.splits.train for spec in config.specs} == {40}
     given = replace(base, settings={"data": {"splits.train": 90}})
-    bench = BenchConfig(given, "density", density.tune_scenario, data=density.data)
+    bench = BenchConfig(given, name="density", tune_scenario=tuning, data=density.data)
     assert {spec.family.splits.train for spec in bench.base.specs} == {90}
     assert bench.given == {"data": {"splits.train": 90}}
     assert BenchConfig(base, data=density.data).key() != BenchConfig(base).key()
@@ -425,7 +426,7 @@ def test_a_gp_sampler_asks_its_own_trials_under_a_key_of_its_own_and_resumes(tmp
         TuneConfig(base, sampler="cma")
     with pytest.raises(InputError, match="--sampler 'cma': expected one of tpe, gp"):
         BenchConfig(base, sampler="cma")  # before any folder is claimed
-    from sim.studies.benchmark.leaderboard import _sampler_text
+    from sim.studies.benchmark.board_markdown import _sampler_text
 
     assert _sampler_text(gp.to_json()) == "; then asked by a Gaussian process"
     assert _sampler_text(tpe.to_json()) == ""
@@ -593,7 +594,7 @@ def test_reproductions_tuned_table_is_made_from_the_committed_boards():
 
 
 def test_the_tuned_table_ranks_methods_by_their_mean_rank_and_marks_holm():
-    from sim.studies.benchmark.leaderboard import boards_table
+    from sim.studies.benchmark.board_markdown import boards_table
 
     def entry(method, rank, mean, significant):
         return {
@@ -714,7 +715,7 @@ def test_the_ranking_transfer_is_one_for_one_ranking_and_falls_as_it_reverses(sc
 
 def test_a_board_says_how_its_jobs_shared_the_machine():
     """Locally its jobs at a time (one job, singular); on Ray the cluster, not ``--jobs``."""
-    from sim.studies.benchmark.leaderboard import _parallel_text
+    from sim.studies.benchmark.board_markdown import _parallel_text
 
     assert _parallel_text({"jobs": 1}) == "1 job at a time"
     assert _parallel_text({"jobs": 2, "backend": "local"}) == "2 jobs at a time"

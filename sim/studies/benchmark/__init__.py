@@ -90,16 +90,46 @@ def add_tuning_options(p) -> None:
         "second tuning of one benchmark, evaluated on the same seeds, shows whether it selects",
     )
     g.add_argument(
-        "--tuned-from",
-        type=Path,
-        metavar="BOARD",
-        help="no tuning: every method's settings as another benchmark chose them (its folder or "
-        "tuning.json), e.g. to rank the same settings on another curriculum",
-    )
-    g.add_argument(
         "--storage",
         help="the trials' Optuna storage: a database URL, or journal:FILE (Optuna's journal, a "
         "file processes on several machines may share); default: SQLite in --out",
+    )
+
+
+def add_artefact_options(p) -> None:
+    """Where a board's settings come from: the preset's shipped tuning, another's, or anew."""
+    g = p.add_argument_group("shipped tuning")
+    g.add_argument(
+        "--tuned-from",
+        type=Path,
+        metavar="BOARD",
+        help="no tuning: every method's settings from this file (a tuning artefact, a board's "
+        "folder or tuning.json) instead of the preset's shipped tuning, e.g. to rank the same "
+        "settings on another curriculum",
+    )
+    g.add_argument(
+        "--retune",
+        action="store_true",
+        help="tune anew (a preset's board evaluates its shipped tuning artefact by default)",
+    )
+    g.add_argument(
+        "--tune-only",
+        action="store_true",
+        help="tune and write the tuning artefact (OUT/PRESET.json, the file a preset ships), "
+        "no evaluation; resumable with --resume",
+    )
+    g.add_argument(
+        "--design",
+        choices=("staged", "optuna"),
+        help="how a tuning chooses: staged (a preset's own grid of learning rates, then each "
+        "knob in turn, every setting on the same data draws; a preset's default) or optuna "
+        "(--trials Optuna trials, one data draw each; the default with --scenario)",
+    )
+    g.add_argument(
+        "--design-offset",
+        type=bounded_float(-0.99, 0.99),
+        metavar="STEPS",
+        help="move the staged design's grids by this share of a step (a second design)",
     )
 
 
@@ -161,6 +191,7 @@ class Benchmark(Study):
     def add_options(self, p):
         p.add_argument("preset", nargs="?", help=f"one of {', '.join(PRESETS)} (or --scenario)")
         p.set_defaults(seeds=SEEDS)
+        add_artefact_options(p)
         add_tuning_options(p)
         add_evaluation_options(p)
         p.add_argument(
@@ -192,24 +223,26 @@ class Benchmark(Study):
         from sim.studies.benchmark.protocol import run_bench
 
         preset = self.preset(args)
+        tuned_from, design = self.tuning_source(args, preset)
         bench = BenchConfig(
             config,
-            args.preset or "custom",
-            args.tune_scenario or (preset.tune_scenario if preset else None),
-            args.trials,
-            args.storage,
-            args.replay_budget or None,
-            args.prune,
-            args.reference_seeds,
-            tuple(args.compare.split(",")) if args.compare else (),
-            args.width,
-            args.max_seeds,
-            preset.data if preset else {},
-            args.tuning_seed,
-            args.race,
-            args.race_seeds,
-            args.sampler,
-            args.tuned_from,
+            name=args.preset or "custom",
+            tune_scenario=args.tune_scenario or (preset.tune_scenario if preset else None),
+            trials=args.trials,
+            storage=args.storage,
+            replay_budget=args.replay_budget or None,
+            prune=args.prune,
+            reference_seeds=args.reference_seeds,
+            compare=tuple(args.compare.split(",")) if args.compare else (),
+            width=args.width,
+            max_seeds=args.max_seeds,
+            data=preset.data if preset else {},
+            tuning_seed=args.tuning_seed,
+            race=args.race,
+            race_seeds=args.race_seeds,
+            sampler=args.sampler,
+            tuned_from=tuned_from,
+            design=design,
         )
         if bench.borrowed:  # say what is taken from another board, method by method
             for method, chosen in bench.borrowed[0].items():
@@ -219,10 +252,56 @@ class Benchmark(Study):
         if args.estimate:
             print(estimate_table(bench, estimate_bench(bench, execution)))
             return None
+        if args.tune_only:
+            run_bench(bench, out, execution, args.resume, args.overwrite, argv, tune_only=True)
+            return None
         return run_bench(bench, out, execution, args.resume, args.overwrite, argv)
 
+    def tuning_source(self, args, preset: Preset | None):
+        """Where the settings come from: (``--tuned-from`` or the preset's shipped artefact,
+        None) when the board only evaluates; (None, the design) when it tunes (``--retune``,
+        ``--tune-only``, a custom scenario, a preset that ships none)."""
+        from sim.experiment.design import Design
+        from sim.studies.benchmark.artefacts import shipped
+
+        tunes = args.retune or args.tune_only
+        if args.tuned_from is not None and tunes:
+            raise InputError("--tuned-from takes settings, --retune and --tune-only make them")
+        artefact = shipped(preset.name) if preset and not tunes else None
+        if args.tuned_from is None and artefact is not None:
+            tuning = [f for f, given in self.tuning_flags(args) if given]
+            if tuning:
+                raise InputError(
+                    f"{', '.join(tuning)}: the {preset.name} board evaluates its shipped tuning "
+                    f"({artefact}); add --retune to tune anew"
+                )
+        if args.tuned_from is not None or artefact is not None:
+            return args.tuned_from or artefact, None
+        kind = args.design or ("staged" if preset else "optuna")
+        if kind == "optuna":
+            if args.design_offset is not None:
+                raise InputError("--design-offset moves the staged design's grids; not optuna's")
+            return None, None
+        design = preset.design if preset else Design()
+        return None, design if args.design_offset is None else design.shifted(args.design_offset)
+
+    @staticmethod
+    def tuning_flags(args) -> list[tuple[str, bool]]:
+        """The tuning options and whether each was given."""
+        return [
+            ("--trials", args.trials != TRIALS),
+            ("--prune", args.prune),
+            ("--race", args.race != RACE),
+            ("--sampler", args.sampler != SAMPLER),
+            ("--tune-scenario", args.tune_scenario is not None),
+            ("--tuning-seed", args.tuning_seed is not None),
+            ("--design", args.design is not None),
+            ("--design-offset", args.design_offset is not None),
+            ("--storage", args.storage is not None),
+        ]
+
     def markdown(self, report):
-        from sim.studies.benchmark.leaderboard import leaderboard_markdown
+        from sim.studies.benchmark.board_markdown import leaderboard_markdown
 
         return leaderboard_markdown(report)
 

@@ -14,11 +14,13 @@ from c2inet.files import file_digest
 from c2inet.methods.base import get_method
 from c2inet.report import REFERENCE
 from sim.experiment.config import ExperimentConfig
+from sim.experiment.design import Design
 from sim.experiment.folders import MAX_CONFIG_BYTES
 from sim.experiment.sweep import layered
 from sim.experiment.trials import TRIAL_TRAIN
 from sim.experiment.tuning import SAMPLERS, TuneConfig
 from sim.scenario import parse_scenario
+from sim.studies.benchmark.artefacts import methods_of
 from sim.studies.benchmark.presets import (
     BATCH,
     RACE,
@@ -63,6 +65,10 @@ def borrowed_tuning(
     chosen = _read_json(path, option)
     if not isinstance(chosen, dict):
         raise InputError(f"{option} {path}: expected a table of methods")
+    try:
+        artefact, chosen = chosen, methods_of(chosen)
+    except InputError as error:
+        raise InputError(f"{option} {path}: {error}") from None
     for method in ranked:
         entry = chosen.get(method)
         settings = entry.get("settings") if isinstance(entry, dict) else None
@@ -78,7 +84,11 @@ def borrowed_tuning(
     source = {"file": str(path), "sha256": file_digest(path)}
     boards = [p / "leaderboard.json" for p in (path.parent, path.parent.parent)]
     board = next((b for b in boards if b.is_file()), None)
-    if board is not None:
+    if isinstance(artefact.get("tune_scenario"), str):  # an artefact says it itself
+        source["tune_scenario"] = artefact["tune_scenario"]
+        source["design"] = artefact.get("design")
+        source["tuning_seed"] = artefact.get("seed")
+    elif board is not None:
         tuned_on = _read_json(board, option)
         if isinstance(tuned_on, dict) and isinstance(tuned_on.get("tune_scenario"), str):
             source["tune_scenario"] = tuned_on["tune_scenario"]
@@ -114,7 +124,7 @@ def references(methods: tuple[str, ...]) -> tuple[str, ...]:
     return tuple(m for m in methods if get_method(m).sees_old_tasks)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class BenchConfig:
     """``base``: the evaluation (scenario, methods, ``seeds`` of every ranked method, sizes,
     ``--set``; the protocol's batch unless ``--set train.batch_scenes``); ``name``: the preset
@@ -128,9 +138,12 @@ class BenchConfig:
     ``race``: each method's best trials scored again on ``race_seeds`` more seeds, the best mean
     chosen (``sim.experiment.tuning``); ``sampler``: what asks the trials after the start-up
     draws (``tpe`` or ``gp``); ``tuned_from``: no tuning here, every method's settings taken
-    from another benchmark (:func:`borrowed_tuning`)."""
+    from another benchmark (:func:`borrowed_tuning`): a preset's shipped artefact by default;
+    ``design``: tune by the staged design (``sim.experiment.design``: one log grid of learning
+    rates, each method's knobs in turn, every setting on the same data draws) instead of Optuna's
+    trials (None: Optuna's, with ``trials``, ``sampler``, ``race`` and ``prune``)."""
 
-    base: ExperimentConfig
+    base: ExperimentConfig = field(kw_only=False)
     name: str = "custom"
     tune_scenario: str | None = None
     trials: int = TRIALS
@@ -147,6 +160,7 @@ class BenchConfig:
     race_seeds: int = RACE_SEEDS
     sampler: str = SAMPLER
     tuned_from: Path | None = None
+    design: Design | None = None
     given: dict[str, Any] = field(init=False, compare=False, repr=False)  # the user's --set
     borrowed: tuple | None = field(init=False, compare=False, repr=False)  # (chosen, source)
 
@@ -208,20 +222,23 @@ class BenchConfig:
     def ranked(self) -> tuple[str, ...]:
         return tuple(m for m in self.base.methods if m not in self.references)
 
-    def tuning(self) -> TuneConfig:
-        """The tuning of every ranked method, its studies named by this benchmark's key."""
+    def tuning_base(self) -> ExperimentConfig:
+        """The tuning's experiment: the tuning curriculum, the ranked methods, the tuning seed."""
         first = self.base.specs[0]
         scenario = self.tune_scenario or f"{first.family.name}_{first.label}"
         settings = {s: v for s, v in self.base.settings.items() if s not in self.references}
-        base = replace(
+        return replace(
             self.base,
             scenario=scenario,
             methods=self.ranked,
             settings=settings,
             seed=self.base.seed if self.tuning_seed is None else self.tuning_seed,
         )
+
+    def tuning(self) -> TuneConfig:
+        """Optuna's tuning of every ranked method, its studies named by this benchmark's key."""
         return TuneConfig(
-            base,
+            self.tuning_base(),
             self.trials,
             self.storage,
             self.prune,
@@ -246,6 +263,8 @@ class BenchConfig:
         }
         if self.sampler != "tpe":  # the TPE-tuned boards keep their keys
             protocol["sampler"] = self.sampler
+        if self.design is not None:
+            protocol["design"] = self.design.to_json()
         text = json.dumps(protocol, sort_keys=True, default=str)
         return f"{self.name}-{hashlib.sha256(text.encode()).hexdigest()[:12]}:"
 
@@ -284,6 +303,7 @@ class BenchConfig:
             **({"race": self.race, "race_seeds": self.race_seeds} if self.race else {}),
             **({} if self.sampler == "tpe" else {"sampler": self.sampler}),
             **({"tuned_from": self.borrowed[1]["sha256"]} if self.borrowed else {}),
+            **({"design": self.design.to_json()} if self.design else {}),
         }
 
 

@@ -35,16 +35,19 @@ from c2inet.report import REFERENCE, summarise
 from c2inet.significance import seeds_to_narrow
 from sim.experiment.backends import kept_workers
 from sim.experiment.config import Execution, ExperimentConfig
-from sim.experiment.folders import MARKER, claim, mark_run
+from sim.experiment.folders import MARKER, claim, mark_run, record_written
 from sim.experiment.jobs import JobResult, prepare
 from sim.experiment.outputs import COLUMNS, git_commit, tidy_rows, write_report, write_results
+from sim.experiment.staged import run_staged
 from sim.experiment.storage import check_storage
 from sim.experiment.sweep import layered, plan, run_together
 from sim.experiment.trials import trial_results, trial_seconds
 from sim.experiment.tuning import run_tuning
+from sim.studies.benchmark.artefacts import write_artefact
+from sim.studies.benchmark.board_markdown import leaderboard_markdown
 from sim.studies.benchmark.config import LEAN, BenchConfig, references, seed_count
 from sim.studies.benchmark.estimate import estimate_bench, estimate_line
-from sim.studies.benchmark.leaderboard import leaderboard, leaderboard_markdown
+from sim.studies.benchmark.leaderboard import leaderboard
 from viz.loggers import prepare_tracking
 from viz.study_figures import leaderboard_figure
 
@@ -137,6 +140,19 @@ def measured_cpu(out: Path, evaluation: Evaluation) -> float:
     return tuning + jobs
 
 
+def what_ran(bench: BenchConfig, execution: Execution, argv: list[str] | None) -> dict:
+    """The board's sizes, ``--set``, machine, jobs, backend and command."""
+    return {
+        "sizes": bench.sizes(),
+        "settings": bench.given,
+        "machine": machine(),
+        "jobs": execution.jobs,
+        "backend": execution.backend,
+        **({"ray_address": execution.ray_address} if execution.ray_address else {}),
+        "command": " ".join(argv or []),
+    }
+
+
 def record_call(out: Path, wall: float, decisive: float, estimate, commit) -> dict[str, Any]:
     """Add this call to ``spent.json`` and return the totals: wall seconds, calls, the decisive
     pair's seconds (apart: the board's own time is the rest), the first call's estimate (made
@@ -153,6 +169,61 @@ def record_call(out: Path, wall: float, decisive: float, estimate, commit) -> di
     }
     write_text_atomic(out / "spent.json", json.dumps(spent) + "\n")
     return spent
+
+
+def tune(bench: BenchConfig, out: Path, execution: Execution) -> dict[str, dict[str, Any]]:
+    """Every ranked method's settings: a shipped tuning or another benchmark's (nothing to
+    tune here), or a tuning by the staged design or by Optuna's trials."""
+    if bench.borrowed:
+        return bench.borrowed[0]
+    if bench.design is not None:
+        return run_staged(bench.tuning_base(), bench.design, out / "tuning", execution)
+    return run_tuning(bench.tuning(), out / "tuning", execution)
+
+
+def write_tuning_artefact(
+    bench: BenchConfig, out: Path, chosen: dict, commit, argv, started: float
+) -> dict[str, Any]:
+    """The tuning as a shipped artefact (``artefacts.py``): every method's choice with the
+    curricula, design, seed, runs, commit, machine and cost that produced it."""
+    base = bench.tuning_base()
+    cpu = sum(
+        r.get("cpu_seconds") or 0.0 for m in bench.ranked for r in trial_results(out / "tuning", m)
+    )
+    provenance = {
+        "made_by": " ".join(argv or []),
+        "commits": [commit],
+        "machine": machine(),
+        "cpu_seconds": round(cpu, 1),
+        "wall_seconds": round(time.perf_counter() - started, 1),
+        "epochs": bench.base.epochs,
+        "batch_scenes": bench.base.train_config().batch_scenes,
+        "data": bench.base.settings.get("data", {}),
+        "key": bench.key(),
+    }
+    design = (
+        bench.design.to_json()
+        if bench.design is not None
+        else {
+            "kind": "optuna",
+            "sampler": bench.sampler,
+            "trials": bench.trials,
+            "race": bench.race,
+            "prune": bench.prune,
+            "draws": 1,
+        }  # fmt: skip
+    )
+    path = out / f"{bench.name}.json"
+    record_written(out, [path.name])  # ours, for --overwrite, before it is written
+    artefact = write_artefact(
+        path, bench.name, bench.base.scenario, base.scenario, design, base.seed, provenance,
+        {m: chosen[m] for m in bench.ranked},
+    )  # fmt: skip
+    print(
+        f"the tuning artefact: {path} (ship it as sim/studies/benchmark/tunings/{bench.name}.json)",
+        file=sys.stderr,
+    )
+    return artefact
 
 
 def decide_pair(bench: BenchConfig, evaluation: Evaluation) -> dict[str, Any] | None:
@@ -175,8 +246,11 @@ def run_bench(
     resume: bool = False,
     overwrite: bool = False,
     argv: list[str] | None = None,
+    tune_only: bool = False,
 ) -> dict[str, Any]:
-    """Tune, evaluate and rank; returns the leaderboard (also written under ``out``)."""
+    """Tune, evaluate and rank; returns the leaderboard (also written under ``out``). With
+    ``tune_only``, tune and write the tuning artefact (``out/PRESET.json``, the file a preset
+    ships) and stop; returns the artefact."""
     # every trial and evaluation run of the benchmark in one tracking experiment (--logger)
     execution = replace(execution or Execution(), tracking=out)
     started, cpu_started = time.perf_counter(), time.process_time()
@@ -185,15 +259,17 @@ def run_bench(
     claim(out, bench, execution, resume, overwrite)
     prepare_tracking(execution.loggers, out)
     estimate = None
-    if not resume and not bench.base.quick:  # timing a quick benchmark costs as much as running it
+    if not resume and not bench.base.quick and bench.design is None and not tune_only:
+        # (a quick benchmark costs as much as its timing; the estimate counts Optuna's trials)
         cost = estimate_bench(bench, execution)
         estimate = {k: round(cost[k], 1) for k in ("cpu_seconds", "wall_seconds")}
         print(estimate_line(cost, execution.jobs), file=sys.stderr)
     with kept_workers():  # the tuning rounds and the evaluation start the workers once
-        if bench.borrowed:  # another benchmark's choices: nothing to tune here
-            chosen = bench.borrowed[0]
-        else:
-            chosen = run_tuning(bench.tuning(), out / "tuning", execution)
+        chosen = tune(bench, out, execution)
+        if not bench.borrowed:  # what it tuned, as the file a preset ships
+            artefact = write_tuning_artefact(bench, out, chosen, commit, argv, started)
+            if tune_only:
+                return artefact
         (out / "evaluation").mkdir(exist_ok=True)
         if not (out / "evaluation" / MARKER).is_file():  # a folder of ours, for --overwrite
             mark_run(out / "evaluation")
@@ -206,15 +282,9 @@ def run_bench(
     wall = time.perf_counter() - started
     calls = record_call(out, wall, decisive_spent, estimate, commit)
     run = {
-        "sizes": bench.sizes(),
-        "settings": bench.given,
-        "machine": machine(),
-        "jobs": execution.jobs,
-        "backend": execution.backend,
-        **({"ray_address": execution.ray_address} if execution.ray_address else {}),
+        **what_ran(bench, execution, argv),
         **calls,
         "cpu_seconds": round(measured_cpu(out, evaluation), 1),
-        "command": " ".join(argv or []),
         "cpu_seconds_driver": round(time.process_time() - cpu_started, 1),
     }
     board = leaderboard(bench, summaries, chosen, decisive, run)

@@ -1,0 +1,160 @@
+"""Tuning as a shipped artefact: one JSON file a preset under ``tunings/``, holding every
+method's chosen settings with everything that produced them (the curricula, the design, the
+budget, every run's draws and scores, the commit, the machine). A board evaluates with its
+preset's artefact unless told to ``--retune``; ``sim.run --tuned-from PRESET`` runs a method as
+the board ran it, without the benchmark (as Mammoth ships its best arguments).
+
+An artefact is ``{"format": 1, "preset", "scenario", "tune_scenario", "design", "seed",
+"provenance", "methods": {METHOD: {"settings", "objective", ..., "trials"}}}``; a board's own
+``tuning/tuning.json`` (methods at the top) reads the same way, so either may be given."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from c2inet.errors import InputError
+from c2inet.files import file_digest, write_text_atomic
+
+FORMAT = 1
+SHIPPED = Path(__file__).parent / "tunings"  # the package's artefacts, one a preset
+
+
+def shipped(preset: str) -> Path | None:
+    """The artefact the package ships for ``preset`` (None where it ships none)."""
+    path = SHIPPED / f"{preset}.json"
+    return path if path.is_file() else None
+
+
+def methods_of(table: dict[str, Any]) -> dict[str, Any]:
+    """The method table of an artefact, or of a board's ``tuning.json`` (methods at the top)."""
+    if table.get("format") is not None:
+        if table["format"] != FORMAT or not isinstance(table.get("methods"), dict):
+            raise InputError(f"a tuning artefact of format {table['format']!r}: expected {FORMAT}")
+        return table["methods"]
+    return table
+
+
+def write_artefact(
+    path: Path,
+    preset: str,
+    scenario: str,
+    tune_scenario: str,
+    design: dict[str, Any],
+    seed: int,
+    provenance: dict[str, Any],
+    methods: dict[str, Any],
+) -> dict[str, Any]:
+    """Write an artefact (temporary file, then rename) and return it."""
+    artefact = {
+        "format": FORMAT,
+        "preset": preset,
+        "scenario": scenario,
+        "tune_scenario": tune_scenario,
+        "design": design,
+        "seed": seed,
+        "provenance": provenance,
+        "methods": methods,
+    }
+    write_text_atomic(path, json.dumps(artefact, indent=1, sort_keys=False) + "\n")
+    return artefact
+
+
+def from_board(board: Path, preset: str, out: Path) -> dict[str, Any]:
+    """An artefact made from a committed board's own tuning (its ``tuning.json`` and
+    ``leaderboard.json``): the design it used (Optuna, one data draw a trial, the 3-task
+    curriculum), said as such, with the file it came from and its SHA-256."""
+    tuning, meta = board / "tuning.json", json.loads((board / "leaderboard.json").read_text())
+    run = meta.get("run", {})
+    design = {
+        "kind": "optuna",
+        "sampler": meta.get("sampler", "tpe"),
+        "trials": meta["trials"],
+        "race": meta.get("race", 0),
+        "prune": meta.get("prune", False),
+        "draws": 1,  # every trial on its own single data draw
+        "tasks": None,  # the tuning curriculum's, below
+    }
+    provenance = {
+        "made_by": run.get("command"),
+        "from_board": str(board),
+        "file": str(tuning),
+        "sha256": file_digest(tuning),
+        "study_prefix": meta.get("study_prefix"),
+        "commits": run.get("commits", []),
+        "machine": run.get("machine"),
+        "epochs": meta.get("epochs"),
+        "batch_scenes": meta.get("batch_scenes"),
+        "data": meta.get("data", {}),
+        "note": "a single tuning: one Optuna study a method on a 3-task curriculum, each trial "
+        "scored on one data draw (the design issue 60 found unstable)",
+    }
+    return write_artefact(
+        out,
+        preset,
+        meta["scenario"],
+        meta["tune_scenario"],
+        design,
+        meta.get("tuning_seed", meta.get("seed", 0)),
+        provenance,
+        json.loads(tuning.read_text()),
+    )
+
+
+def tuned_settings(given: str, methods: tuple[str, ...], tasks: int) -> tuple[dict[str, dict], str]:
+    """``sim.run --tuned-from PRESET|FILE``: the settings a tuning chose for ``methods`` (a
+    preset's shipped artefact, an artefact file or a board's ``tuning.json``), as ``--set``
+    settings by scope, and the file they came from; by a preset's name also what its board
+    sets (batch, data sizes, the replay budget over ``tasks`` tasks), so the run is the board's
+    job. The trainer's and the model's options are shared by every method of one run, so
+    methods tuned to different ``train.*`` or ``model.*`` values are one line: run them one at
+    a time (or the board)."""
+    path = shipped(given) if "/" not in given and not given.endswith(".json") else None
+    settings: dict[str, dict[str, Any]] = {}
+    if path is not None:
+        settings = _board_settings(given, methods, tasks)
+    path = path or Path(given)
+    if path.is_dir():
+        path = next((p for p in (path / "tuning.json", path / "tuning" / "tuning.json")
+                     if p.is_file()), path)  # fmt: skip
+    if not path.is_file():
+        raise InputError(
+            f"--tuned-from {given}: neither a preset that ships a tuning ({_names()}) nor a "
+            "tuning file"
+        )
+    try:
+        table = methods_of(json.loads(path.read_text(encoding="utf-8")))
+    except (OSError, UnicodeDecodeError, ValueError) as error:
+        raise InputError(f"--tuned-from {path}: cannot read it: {error}") from None
+    for method in methods:
+        entry = table.get(method) if isinstance(table, dict) else None
+        if not isinstance(entry, dict) or not isinstance(entry.get("settings"), dict):
+            raise InputError(f"--tuned-from {path}: no chosen settings of {method!r}")
+        for scope, values in entry["settings"].items():
+            for key, value in values.items():
+                have = settings.setdefault(scope, {})
+                if scope in ("train", "model") and have.get(key, value) != value:
+                    raise InputError(
+                        f"--tuned-from {path}: the methods were tuned to different {scope}.{key} "
+                        "values; run one method at a time (or the board: python -m sim.bench)"
+                    )
+                have[key] = value
+    return settings, str(path)
+
+
+def _board_settings(preset: str, methods: tuple[str, ...], tasks: int) -> dict[str, dict]:
+    """What a preset's board sets beside the tuning: batch, data sizes, replay budget."""
+    from c2inet.methods.base import get_method
+    from sim.studies.benchmark.presets import BATCH, PRESETS, REPLAY_BUDGET
+
+    settings = {"train": {"batch_scenes": BATCH}, "data": dict(PRESETS[preset].data)}
+    for method in methods:
+        options = get_method(method).replay_options(REPLAY_BUDGET, tasks)
+        if options:
+            settings[method] = dict(options)
+    return settings
+
+
+def _names() -> str:
+    return ", ".join(sorted(p.stem for p in SHIPPED.glob("*.json"))) or "none"

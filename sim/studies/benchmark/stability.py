@@ -1,0 +1,132 @@
+"""Do a board's verdicts survive a second tuning? Two or more boards of one benchmark, each from
+its own independent tuning, evaluated on the same seeds: each board's Holm verdicts side by
+side, how many agree, which starred verdicts reverse, and each method's difference from
+fine-tuning over tunings and seeds together, the tuning a random effect
+(:func:`c2inet.significance.over_tunings`), Holm-adjusted over the methods. A verdict that holds
+is one whose over-tunings interval is clear of 0; a board that rests on one tuning cannot say.
+
+``python scripts/tuning_stability.py BOARD BOARD ...`` prints it."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from c2inet.report import REFERENCE
+from c2inet.significance import ALPHA, LEVEL, holm, over_tunings, paired
+
+
+def finals(board: Path) -> dict[str, dict[int, float]]:
+    """Per method, each evaluation seed's final average point-prediction ADE."""
+    import pandas as pd
+
+    rows = pd.read_parquet(board / "results.parquet")
+    rows = rows[rows["metric"] == "ade_k1"]
+    last = list(dict.fromkeys(rows["on_task"]))[-1]  # the curriculum's order
+    means = rows[rows["after_task"] == last].groupby(["method", "seed"])["value"].mean()
+    return {m: dict(means[m].items()) for m in means.index.get_level_values(0).unique()}
+
+
+def verdict(entry: dict[str, Any]) -> str:
+    """``ahead``, ``behind`` (of fine-tuning, Holm-significant) or ``level``."""
+    cell = entry["final_ade_k1"]
+    if not cell.get("significant"):
+        return "level"
+    return "ahead" if cell["difference"] < 0 else "behind"
+
+
+def stability(boards: list[Path], reference: str = REFERENCE) -> dict[str, Any]:
+    """Compare the boards' verdicts and pool them over tunings (see the module's docstring)."""
+    if len(boards) < 2:
+        raise ValueError("stability: two boards or more, each its own tuning")
+    metas = [json.loads((b / "leaderboard.json").read_text()) for b in boards]
+    values = [finals(b) for b in boards]
+    entries = [{e["method"]: e for e in meta["entries"]} for meta in metas]
+    methods = sorted(set.intersection(*(set(e) for e in entries)) - {reference})
+    rows, pooled = {}, []
+    for method in methods:
+        seeds = sorted(set.intersection(*(set(v[method]) & set(v[reference]) for v in values)))
+        differences = [[v[method][s] - v[reference][s] for s in seeds] for v in values]
+        pooled.append(over_tunings(differences))
+        rows[method] = {
+            "seeds": len(seeds),
+            "verdicts": [verdict(e[method]) for e in entries],
+            "differences": [round(e[method]["final_ade_k1"]["difference"], 6) for e in entries],
+            "p_holm": [e[method]["final_ade_k1"]["p_value"] for e in entries],
+            "tunings_differ": _tunings_differ(differences),
+        }
+    for method, result, p in zip(methods, pooled, holm([r.p_value for r in pooled]), strict=True):
+        clear = result.interval[0] > 0 or result.interval[1] < 0
+        rows[method]["over_tunings"] = {
+            "difference": round(result.difference, 6),
+            "interval": [round(x, 6) for x in result.interval],
+            "df": round(result.df, 1),
+            "p_holm": round(p, 6),
+            "holds": ("ahead" if result.difference < 0 else "behind")
+            if clear and p < ALPHA
+            else "not shown",
+        }
+    agree = [m for m in methods if len(set(rows[m]["verdicts"])) == 1]
+    reversed_ = [m for m in methods if {"ahead", "behind"} <= set(rows[m]["verdicts"])]
+    return {
+        "boards": [str(b) for b in boards],
+        "tunings": len(boards),
+        "reference": reference,
+        "methods": rows,
+        "agree": len(agree),
+        "ranked": len(methods),
+        "reversed": reversed_,
+        "level": LEVEL,
+    }
+
+
+def _tunings_differ(differences: list[list[float]]) -> str:
+    """Two tunings' settings compared on the same seeds: the paired difference of the method's
+    own gap from fine-tuning between the first two tunings, with its interval."""
+    first, second = np.asarray(differences[0]), np.asarray(differences[1])
+    test = paired(list(second), list(first))
+    low, high = test.interval or (float("nan"), float("nan"))
+    return f"{test.difference:+.3f} [{low:+.3f}, {high:+.3f}]"
+
+
+def stability_markdown(result: dict[str, Any]) -> str:
+    """The comparison as Markdown: a row a method, then the agreement in one line."""
+    names = [  # a board in A/ and B/ folders is named with its parent
+        Path(b).name if len(Path(b).name) > 1 else f"{Path(b).parent.name}/{Path(b).name}"
+        for b in result["boards"]
+    ]
+    ref = result["reference"]
+    lines = [
+        f"Each ranked method's final K = 1 ADE minus {ref}'s under {result['tunings']} "
+        "independent tunings evaluated on the same seeds: each board's difference and Holm "
+        "verdict, then the difference over tunings and seeds with the tuning a random effect "
+        f"({round(100 * result['level'])} % interval, Satterthwaite's df, Holm over the methods).",
+        "",
+        "| method | seeds | "
+        + " | ".join(f"`{n}`" for n in names)
+        + " | 2nd minus 1st tuning [95 % CI] | over tunings [95 % CI] | df | Holm p | holds |",
+        "|---|---|" + "---|" * len(names) + "---|---|---|---|---|",
+    ]
+    for method, row in result["methods"].items():
+        cells = [
+            f"{d:+.3f} ({v})" for d, v in zip(row["differences"], row["verdicts"], strict=True)
+        ]
+        over = row["over_tunings"]
+        low, high = over["interval"]
+        lines.append(
+            f"| {method} | {row['seeds']} | " + " | ".join(cells) + f" | {row['tunings_differ']} "
+            f"| {over['difference']:+.3f} [{low:+.3f}, {high:+.3f}] | {over['df']:g} | "
+            f"{over['p_holm']:.3f} | {over['holds']} |"
+        )
+    share = result["agree"] / max(result["ranked"], 1)
+    lines += [
+        "",
+        f"Holm verdicts agree for {result['agree']} of {result['ranked']} ranked methods "
+        f"({100 * share:.0f} %); starred verdicts reversed: "
+        + (", ".join(result["reversed"]) or "none")
+        + ".",
+    ]
+    return "\n".join(lines) + "\n"

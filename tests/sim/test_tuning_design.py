@@ -1,0 +1,193 @@
+"""Tuning as a shipped artefact: the staged design (one grid of learning rates, each knob in
+turn, every setting on the same draws, a fitted choice, a bound marked), tuning curricula with
+the evaluated configuration, designs that differ by preset, a resumed tuning equal to an
+uninterrupted one, and a board that evaluates a shipped artefact without running a trial."""
+
+import json
+import math
+import shutil
+
+import numpy as np
+import pytest
+
+from c2inet.errors import InputError
+from c2inet.options import Choice, Tunable
+from c2inet.trainer import TRAIN_SPACE
+from sim.bench import main
+from sim.experiment import ExperimentConfig
+from sim.experiment.config import Execution
+from sim.experiment.design import Design, choose, near_bound
+from sim.experiment.staged import draw_seed, run_staged
+from sim.scenario import parse_scenario
+from sim.studies.benchmark import PRESETS, artefacts
+from sim.studies.benchmark.board_markdown import leaderboard_markdown
+from sim.studies.benchmark.leaderboard import bounds_of
+
+LR = TRAIN_SPACE["train.lr"]
+
+
+def test_the_learning_rate_grid_is_one_log_grid_and_a_second_design_moves_it():
+    design = Design(lr_low=1e-4, lr_high=1e-2, lr_points=5)
+    grid = design.first_points("train.lr", LR, 1e-3)
+    np.testing.assert_allclose(np.log10(grid), [-4, -3.5, -3, -2.5, -2])
+    moved = design.shifted(0.5).first_points("train.lr", LR, 1e-3)
+    np.testing.assert_allclose(np.log10(moved), [-3.75, -3.25, -2.75, -2.25, -1.75])
+    strength = Tunable(0.01, 1e4, log=True)  # a knob: its default and a neighbour either side
+    knob = design.first_points("strength", strength, 100.0)  # a quarter of 6 decades either side
+    np.testing.assert_allclose(knob, [10**0.5, 100.0, 10**3.5])
+    assert design.first_points("c_detached", Choice((True, False)), True) == [True, False]
+    assert design.beyond(LR, grid, low_side=True) == pytest.approx(10**-4.5)
+    assert design.beyond(strength, knob, low_side=False) == pytest.approx(1e4)  # clipped
+    assert design.beyond(strength, [*knob, 1e4], low_side=False) is None  # at the bound
+    with pytest.raises(InputError):
+        Design(lr_points=2)
+
+
+def test_a_stage_chooses_the_planted_minimum_between_its_grid_points():
+    planted = 10**-2.8  # a quadratic in log10(lr) with its minimum between two grid points
+    means = {lr: 0.2 + (math.log10(lr) + 2.8) ** 2 for lr in (1e-4, 10**-3.5, 1e-3, 10**-2.5, 1e-2)}
+    value, how = choose(LR, means)
+    assert value == pytest.approx(planted) and "parabola" in how
+    noisy = {**means, 10**-2.5: means[10**-2.5] + 0.3}  # a noisy point cannot throw it far
+    assert 10**-3.5 <= choose(LR, noisy)[0] <= 10**-2.5
+    edge = {lr: lr for lr in means}  # best at the low edge: the edge itself
+    assert choose(LR, edge) == (1e-4, "the best mean, at the grid's edge")
+    diverged = {**means, 10**-2.5: math.inf}
+    assert choose(LR, diverged)[0] == 1e-3  # a diverged neighbour: no fit through it
+    assert choose(Choice((True, False)), {True: 0.3, False: 0.2})[0] is False
+
+
+def test_a_choice_at_a_bound_is_marked_on_the_board():
+    assert near_bound(LR, LR.low) == "low" and near_bound(LR, LR.high) == "high"
+    assert near_bound(LR, 1e-3) is None and near_bound(Choice((1, 2)), 1) is None
+    marks = bounds_of("ewc", {"train": {"lr": 1e-3}, "ewc": {"strength": 1e4}})
+    assert marks == {"strength": "high"}
+    board = {
+        "preset": "p", "study_prefix": "p-0:", "scenario": "s", "tune_scenario": "t",
+        "sizes": "quick", "epochs": 2,
+        "batch_scenes": 16, "k": 5, "trials": 0, "seeds": 2, "reference": "finetune",
+        "alpha": 0.05, "run": {"settings": {}, "wall_seconds": 1, "cpu_seconds": 1, "calls": 1,
+        "decisive_seconds": 0, "commits": ["x"], "machine": "m", "jobs": 1, "command": "c"},
+        "references": [], "decisive": None,
+    }  # fmt: skip
+    cell = {"mean": 0.2, "interval": None, "difference": 0.0, "difference_interval": None,
+            "p_value": None, "significant": False}  # fmt: skip
+    entry = {"rank": 1, "method": "ewc", "final_ade_k1": {**cell, "p_signflip": None},
+             "final_ade": cell, "forgetting_final_ade_k1": cell, "forgetting_final_ade": cell,
+             "memory_floats": 0, "cpu_seconds": 1.0, "settings": {}, "trials": 0, "pruned": 0,
+             "at_bound": marks}  # fmt: skip
+    text = leaderboard_markdown({**board, "entries": [entry]})
+    assert "| ewc † |" in text and "strength at its high bound" in text
+
+
+def test_every_preset_tunes_on_its_evaluated_configuration_and_its_own_design():
+    for name, preset in PRESETS.items():
+        evaluated = parse_scenario(preset.scenario)
+        tuning = parse_scenario(preset.tune_scenario)
+        if evaluated[0].family.name.startswith("eth_ucy"):
+            continue  # no other recording: held-out training scenes of the same ones
+        values = [float(s.label) for s in evaluated]
+        tuned = [float(s.label) for s in tuning]
+        assert len(tuned) == len(values), name  # as many tasks
+        assert np.allclose(np.diff(tuned), np.diff(values)), name  # at the same step
+        assert not set(np.round(tuned, 6)) & set(np.round(values, 6)), name  # none evaluated
+    designs = {name: preset.design for name, preset in PRESETS.items()}
+    assert len(set(designs.values())) == len(designs)  # no two presets share one design
+
+
+@pytest.fixture(scope="module")
+def staged(tmp_path_factory):
+    root = tmp_path_factory.mktemp("staged")
+    base = ExperimentConfig(
+        "crowd_noise_0.1,0.2", methods=("finetune", "ewc", "cv"), quick=True, record=False
+    )
+    design = Design(lr_low=1e-3, lr_high=1e-2, lr_points=3, draws=2, extend=1)
+    execution = Execution(cache=root / "cache")
+    return root, base, design, execution, run_staged(base, design, root / "a", execution)
+
+
+def test_the_staged_tuning_scores_every_setting_on_the_same_draws(staged):
+    root, base, design, _, chosen = staged
+    assert chosen["cv"] == {"settings": {}, "trials": []}
+    for method in ("finetune", "ewc"):
+        runs = chosen[method]["trials"]
+        assert {r["draw"] for r in runs} == {0, 1}
+        for draw in (0, 1):  # common random numbers: one data draw for every setting and method
+            assert {r["seed"] for r in runs if r["draw"] == draw} == {draw_seed(base.seed, draw)}
+        lr = chosen[method]["stages"][0]
+        assert lr["knob"] == "train.lr" and len(lr["points"]) >= 3
+        assert chosen[method]["settings"]["train"]["lr"] == lr["chosen"]
+        assert math.isfinite(chosen[method]["objective"])
+    ewc = chosen["ewc"]
+    assert [s["knob"] for s in ewc["stages"]] == ["train.lr", "strength"]
+    assert ewc["settings"]["ewc"]["strength"] == ewc["stages"][1]["chosen"]
+    assert draw_seed(0, 0) != draw_seed(1, 0)  # another tuning seed, other draws
+
+
+def test_a_resumed_staged_tuning_gives_the_same_artefact(staged, tmp_path):
+    root, base, design, execution, chosen = staged
+    copy = tmp_path / "a"
+    shutil.copytree(root / "a", copy)
+    ewc_runs = sorted((copy / "trials" / "ewc").iterdir())
+    for folder in ewc_runs[-3:]:  # killed: its last runs gone, one half-written
+        shutil.rmtree(folder)
+    (copy / "tuning.json").unlink()
+
+    def without_cost(table):
+        for entry in table.values():
+            for run in entry["trials"]:
+                run.pop("cpu_seconds", None)
+        return table
+
+    again = run_staged(base, design, copy, execution)
+    assert without_cost(again) == without_cost(json.loads(json.dumps(chosen)))
+
+
+def test_a_board_evaluates_its_presets_shipped_tuning_and_runs_no_trial(
+    tmp_path, monkeypatch, capsys
+):
+    shipped = tmp_path / "tunings"
+    shipped.mkdir()
+    planted = {
+        "finetune": {"settings": {"train": {"lr": 0.00123}}, "trials": []},
+        "cv": {"settings": {}, "trials": []},
+    }
+    artefacts.write_artefact(
+        shipped / "noise.json", "noise", "crowd_noise_0.1..0.6", "crowd_noise_0.05..0.55:0.1",
+        Design().to_json(), 0, {"made_by": "a test"}, planted,
+    )  # fmt: skip
+    monkeypatch.setattr(artefacts, "SHIPPED", shipped)
+    out = tmp_path / "board"
+    argv = [
+        "noise", "--methods", "finetune,cv", "--seeds", "2", "--quick", "--no-record",
+        "--set", "data.splits.train=6", "--cache", str(tmp_path / "cache"), "--out", str(out),
+    ]  # fmt: skip
+    assert main(argv) == 0
+    assert not (out / "tuning").exists()  # no trial ran
+    for seed in (0, 1):
+        config = json.loads((out / "evaluation" / "finetune" / f"seed_{seed}" / "config.json")
+                            .read_text())  # fmt: skip
+        assert config["experiment"]["settings"]["train"]["lr"] == 0.00123
+    board = json.loads((out / "leaderboard.json").read_text())
+    assert board["tuned_from"]["file"] == str(shipped / "noise.json")
+    assert board["tuned_from"]["design"]["kind"] == "staged"
+    assert "rests on that one tuning" in (out / "leaderboard.md").read_text()
+    capsys.readouterr()
+    assert main([*argv, "--trials", "3", "--out", str(tmp_path / "no")]) == 2
+    err = capsys.readouterr().err
+    assert "--trials" in err and "--retune" in err and err.count("\n") == 1
+    assert not (tmp_path / "no").exists()
+
+
+def test_sim_run_takes_a_presets_tuned_settings_by_its_name(capsys):
+    from sim.run import main as run
+
+    assert run(["--scenario", "crowd_radius_0.1..0.6", "--methods", "derpp", "--tuned-from",
+                "radius", "--print-config"]) == 0  # fmt: skip
+    printed = capsys.readouterr()
+    entry = json.loads(artefacts.shipped("radius").read_text())["methods"]["derpp"]
+    assert f"lr = {entry['settings']['train']['lr']}" in printed.out
+    assert "batch_scenes = 16" in printed.out and "buffer = 200" in printed.out
+    assert run(["--scenario", "crowd_radius_0.1,0.2", "--methods", "derpp,ewc", "--tuned-from",
+                "radius", "--print-config"]) == 2  # fmt: skip
+    assert "different train.lr" in capsys.readouterr().err
