@@ -176,3 +176,18 @@ def over_tunings(differences: np.ndarray | list[list[float]]) -> OverTunings:
     half = float(stats.t.ppf(0.5 + LEVEL / 2, df)) * se
     p = float(2 * stats.t.sf(abs(grand) / se, df))
     return OverTunings(float(grand), (float(grand - half), float(grand + half)), p, df, t, s)
+
+
+def detectable(differences: list[list[float]], power: float = 0.8) -> float | None:
+    """The smallest mean paired difference a table of paired comparisons (each a list of
+    per-seed differences against one reference, over the same seeds) detects with ``power`` at
+    :data:`ALPHA` two-sided: ``(t_{1-ALPHA/2} + t_power) * sd / sqrt(n)``, with the median of the
+    comparisons' spreads; None below two seeds or comparisons."""
+    spreads = [float(np.std(d, ddof=1)) for d in differences if len(d) >= 2]
+    if not spreads:
+        return None
+    from scipy import stats
+
+    n = min(len(d) for d in differences if len(d) >= 2)
+    t = stats.t.ppf(1 - ALPHA / 2, n - 1) + stats.t.ppf(power, n - 1)
+    return float(t * np.median(spreads) / np.sqrt(n))

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from c2inet.errors import InputError
-from c2inet.significance import paired
+from c2inet.significance import detectable, paired
 from sim.studies.base import Study, register
 
 if TYPE_CHECKING:  # the engine loads once there is work (``sim.studies.base``)
@@ -113,12 +113,15 @@ def summarise_study(study: Preset, entries: list[tuple[str, ExperimentConfig, di
                         "avg_seen_fde_std",
                         "forgetting_final_ade",
                         "final_ade_per_seed",
+                        "avg_seen_ade_k1",
+                        "final_ade_k1_per_seed",
                     )
                     if key in m
                 },
             }
         )
-    return {"study": study.title, "paper": study.paper, "rows": rows}
+    k = entries[0][1].k if entries else None
+    return {"study": study.title, "paper": study.paper, "k": k, "rows": rows}
 
 
 def order_table(summary: dict) -> list[str]:
@@ -140,50 +143,92 @@ def order_table(summary: dict) -> list[str]:
     return [*lines, ""]
 
 
-def paired_text(row: dict, first: dict) -> str:
-    """``row`` minus ``first`` over the same seeds: the final ADE's mean difference, its 95 %
-    interval and p; a dash for the first row itself or with one seed."""
-    if row is first or "final_ade_per_seed" not in row or len(row["final_ade_per_seed"]) < 2:
+def paired_text(row: dict, first: dict, key: str = "final_ade_per_seed") -> str:
+    """``row`` minus ``first`` over the same seeds (``key``: the per-seed finals compared): the
+    mean difference, its 95 % interval and p; a dash for the first row itself or with one
+    seed."""
+    if row is first or key not in row or len(row[key]) < 2:
         return "-"
-    result = paired(row["final_ade_per_seed"], first["final_ade_per_seed"])
+    result = paired(row[key], first[key])
     low, high = result.interval
     return f"{result.difference:+.4f} [{low:+.4f}, {high:+.4f}], p = {result.p_value:.3f}"
 
 
+def detectable_text(rows: list[dict], k: Any) -> str:
+    """What the table's seeds can see: the smallest paired difference it detects at 80 % power,
+    for K = 1 and for best of K, from the median spread of its paired differences."""
+    parts = []
+    for key, name in (("final_ade_k1_per_seed", "K = 1"), ("final_ade_per_seed", f"best of {k}")):
+        differences = [
+            [a - b for a, b in zip(r[key], rows[0][key], strict=True)]
+            for r in rows[1:]
+            if key in r and key in rows[0]
+        ]
+        found = detectable(differences) if differences else None
+        if found is not None:
+            parts.append(f"{found:.3f} m ({100 * found / _final(rows[0], key):.0f} %) at {name}")
+    if not parts:
+        return ""
+    seeds = rows[0]["seeds"]
+    return (
+        f"With {seeds} paired seeds this table detects a difference of about "
+        + " and ".join(parts)
+        + " (80 % power, 5 % two-sided, the median spread of its paired differences); a smaller "
+        "effect reads as no effect here."
+    )
+
+
+def _final(row: dict, key: str) -> float:
+    return sum(row[key]) / len(row[key])
+
+
 def study_markdown(summary: dict) -> str:
+    k = summary.get("k", "K")
     lines = [f"# {summary['study']}", "", f"The paper: {summary['paper']}.", ""]
     if summary.get("by") == "order":
         lines += order_table(summary)
     lines += [
-        "Cells: ADE/FDE in metres averaged over the tasks seen so far after each task, mean over "
-        "seeds (± std of the final average); in brackets the change of the final ADE against the "
-        "first row of its curriculum. The last column pairs each seed's final ADE with the first "
-        "row's on the same seed and data: the mean difference, its 95 % interval and the paired "
-        "t-test's p (a difference whose interval holds 0 is within the seed spread).",
+        f"Cells: ADE/FDE in metres, best of K = {k} sampled futures, averaged over the tasks "
+        "seen so far after each task, mean over seeds (± std of the final average); in brackets "
+        "the change of the final ADE against the first row of its curriculum. The last columns "
+        "pair each seed's final ADE with the first row's on the same seed and data, at best of "
+        f"{k} and for the point prediction (K = 1, what the boards rank): the mean difference, "
+        "its 95 % interval and the paired t-test's p (a difference whose interval holds 0 is "
+        "within the seed spread).",
         "",
     ]
     scenarios = dict.fromkeys(r["scenario"] for r in summary["rows"])
     for scenario in scenarios:
         rows = [r for r in summary["rows"] if r["scenario"] == scenario]
-        labels = rows[0]["labels"]
-        lines += [f"## {scenario}", ""]
-        lines.append("| variant | " + " | ".join(labels) + " | forgetting | paired vs first row |")
-        lines.append("|---|" + "---|" * (len(labels) + 2))
-        reference = rows[0]["avg_seen_ade"][-1]
-        for r in rows:
-            cells = [
-                f"{a:.3f}/{f:.3f}"
-                for a, f in zip(r["avg_seen_ade"], r["avg_seen_fde"], strict=True)
-            ]
-            change = r["avg_seen_ade"][-1] - reference
-            cells[-1] += f" ± {r['avg_seen_ade_std'][-1]:.3f} ({change:+.3f})"
-            lines.append(
-                f"| {r['variant']} | "
-                + " | ".join(cells)
-                + f" | {r['forgetting_final_ade']:+.3f} | {paired_text(r, rows[0])} |"
-            )
-        lines.append("")
+        lines += [f"## {scenario}", "", *variant_table(rows, k), ""]
+        found = detectable_text(rows, k)
+        lines += [found, ""] if found else []
     return "\n".join(lines)
+
+
+def variant_table(rows: list[dict], k: Any) -> list[str]:
+    """One row a variant: the seen-task averages, forgetting, and both paired comparisons."""
+    labels = rows[0]["labels"]
+    lines = [
+        "| variant | " + " | ".join(labels) + f" | forgetting | best of {k} vs first row | "
+        "final K = 1 | K = 1 vs first row |",
+        "|---|" + "---|" * (len(labels) + 4),
+    ]
+    reference = rows[0]["avg_seen_ade"][-1]
+    for r in rows:
+        cells = [
+            f"{a:.3f}/{f:.3f}" for a, f in zip(r["avg_seen_ade"], r["avg_seen_fde"], strict=True)
+        ]
+        change = r["avg_seen_ade"][-1] - reference
+        cells[-1] += f" ± {r['avg_seen_ade_std'][-1]:.3f} ({change:+.3f})"
+        point = f"{r['avg_seen_ade_k1'][-1]:.3f}" if "avg_seen_ade_k1" in r else "-"
+        lines.append(
+            f"| {r['variant']} | "
+            + " | ".join(cells)
+            + f" | {r['forgetting_final_ade']:+.3f} | {paired_text(r, rows[0])} | {point} | "
+            f"{paired_text(r, rows[0], 'final_ade_k1_per_seed')} |"
+        )
+    return lines
 
 
 class PaperStudy(Study):

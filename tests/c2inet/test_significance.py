@@ -114,3 +114,13 @@ def test_the_interval_over_tunings_widens_when_a_planted_second_tuning_disagrees
     assert one.interval[1] < 0
     with pytest.raises(ValueError, match="at least 2 tunings"):
         over_tunings([first])
+
+
+def test_the_detectable_effect_shrinks_with_seeds_as_one_over_their_root():
+    from c2inet.significance import detectable
+
+    rng = np.random.default_rng(5)
+    few = detectable([list(rng.normal(0, 0.01, 8)) for _ in range(5)])
+    many = detectable([list(rng.normal(0, 0.01, 32)) for _ in range(5)])
+    assert 0.006 < few < 0.016 and many < few / 1.8  # about 2.9 sd / sqrt(n)
+    assert detectable([[0.1]]) is None

@@ -6,6 +6,7 @@ import json
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from sim.studies.base import STUDIES, Study, discover, register
@@ -129,3 +130,29 @@ def test_each_studys_console_script_takes_a_command_line(capsys, name):
     assert getattr(sim.study, name)(["--scenario", "crowd_nois_0.1,0.2", *reference]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "crowd_nois" in err
+
+
+def test_table_4_says_its_k_and_what_its_seeds_can_detect():
+    """The paper study's table prints best of K with K named, the point prediction (K = 1) with
+    its own paired test, and the smallest effect its seed count detects."""
+    from sim.studies.paper import study_markdown
+
+    rng = np.random.default_rng(0)
+    seeds = rng.normal(0.2, 0.01, 8)
+
+    def row(variant: str, shift: float) -> dict:
+        finals = list(seeds + shift + rng.normal(0, 0.005, 8))
+        return {
+            "scenario": "crowd_radius_0.1,0.2", "variant": variant, "labels": ["0.1", "0.2"],
+            "seeds": 8, "avg_seen_ade": [0.1, 0.2], "avg_seen_ade_std": [0.0, 0.01],
+            "avg_seen_fde": [0.2, 0.4], "forgetting_final_ade": 0.01,
+            "final_ade_per_seed": finals, "avg_seen_ade_k1": [0.15, 0.25 + shift],
+            "final_ade_k1_per_seed": [f + 0.05 for f in finals],
+        }  # fmt: skip
+
+    text = study_markdown(
+        {"study": "Table 4", "paper": "p", "k": 20, "rows": [row("full", 0), row("off", 0.03)]}
+    )
+    assert "best of K = 20" in text and "| best of 20 vs first row |" in text
+    assert "| final K = 1 | K = 1 vs first row |" in text and "| 0.280 |" in text
+    assert "With 8 paired seeds this table detects a difference of about" in text

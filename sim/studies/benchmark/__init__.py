@@ -227,7 +227,10 @@ class Benchmark(Study):
         bench = BenchConfig(
             config,
             name=args.preset or "custom",
-            tune_scenario=args.tune_scenario or (preset.tune_scenario if preset else None),
+            # a tuning that ran elsewhere says its own curriculum (--tuned-from, shipped)
+            tune_scenario=None
+            if tuned_from
+            else args.tune_scenario or (preset.tune_scenario if preset else None),
             trials=args.trials,
             storage=args.storage,
             replay_budget=args.replay_budget or None,
@@ -267,16 +270,16 @@ class Benchmark(Study):
         tunes = args.retune or args.tune_only
         if args.tuned_from is not None and tunes:
             raise InputError("--tuned-from takes settings, --retune and --tune-only make them")
-        artefact = shipped(preset.name) if preset and not tunes else None
-        if args.tuned_from is None and artefact is not None:
+        artefact = args.tuned_from or (shipped(preset.name) if preset and not tunes else None)
+        if artefact is not None:
             tuning = [f for f, given in self.tuning_flags(args) if given]
             if tuning:
+                whose = f"the {preset.name} board" if preset else "the board"
                 raise InputError(
-                    f"{', '.join(tuning)}: the {preset.name} board evaluates its shipped tuning "
-                    f"({artefact}); add --retune to tune anew"
+                    f"{', '.join(tuning)}: {whose} evaluates the tuning in {artefact}, tuned "
+                    "already; add --retune to tune anew"
                 )
-        if args.tuned_from is not None or artefact is not None:
-            return args.tuned_from or artefact, None
+            return artefact, None
         kind = args.design or ("staged" if preset else "optuna")
         if kind == "optuna":
             if args.design_offset is not None:

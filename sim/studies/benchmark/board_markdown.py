@@ -83,7 +83,8 @@ def _protocol_text(board: dict[str, Any]) -> str:
     elif board.get("design"):
         tuning = (
             f"tuned by {_design_text(board['design'])}, on `{board['tune_scenario']}`"
-            f"{_tuning_seed_text(board)} scored on validation data only"
+            f"{_tuning_seed_text(board)} scored on validation data only (one tuning: the "
+            "intervals hold the seeds' spread, not a second tuning's)"
         )
     else:
         tuning = (
