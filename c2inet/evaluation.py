@@ -95,12 +95,14 @@ def evaluate_all(
     seed: int,
     batch_scenes: int = 256,
     variants: bool = True,
+    task: int | None = None,
 ) -> dict[str, float]:
     """:func:`evaluate` for the model's default, and (with ``variants``) for each of its
     evaluation variants with the variant's name appended to the metric names
-    (``ade_c_posterior``)."""
+    (``ade_c_posterior``); ``task``: the index of the task ``windows`` belong to, for the
+    variants that need it (C2INet's ``own`` rule)."""
     scores = evaluate(model, windows, k, seed, batch_scenes)
-    for suffix, options in model.evaluation_variants().items() if variants else ():
+    for suffix, options in model.evaluation_variants(task).items() if variants else ():
         other = evaluate(model, windows, k, seed, batch_scenes, **options)
         scores.update({f"{m}_{suffix}": v for m, v in other.items() if m in VARIANT_METRICS})
     return scores

@@ -8,6 +8,7 @@ import math
 from dataclasses import dataclass
 
 import torch
+from torch import nn
 
 LOG_2PI = math.log(2 * math.pi)
 
@@ -133,3 +134,19 @@ def moment_match(means: torch.Tensor, logvars: torch.Tensor) -> tuple[torch.Tens
     m = means.mean(0)
     var = (logvars.exp() + means**2).mean(0) - m**2
     return m, var.clamp_min(1e-6).log()
+
+
+class GaussianHead(nn.Module):
+    """MLP (32, 32, LeakyReLU) then mean and log-variance of a diagonal Gaussian (GCRL Mapping)."""
+
+    def __init__(self, in_dim: int, out_dim: int):
+        super().__init__()
+        self.body = nn.Sequential(
+            nn.Linear(in_dim, 32), nn.LeakyReLU(), nn.Linear(32, 32), nn.LeakyReLU()
+        )
+        self.mean = nn.Linear(32, out_dim)
+        self.logvar = nn.Linear(32, out_dim)
+
+    def forward(self, h: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        h = self.body(h)
+        return self.mean(h), self.logvar(h).clamp(-8, 4)

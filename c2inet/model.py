@@ -24,6 +24,7 @@ from c2inet.batch import Batch, make_batch, variety_loss
 from c2inet.data import OBS_LEN
 from c2inet.device import model_device
 from c2inet.gaussians import (
+    GaussianHead,
     gaussian_log_prob,
     gaussian_sample,
     kl_standard_normal,
@@ -121,25 +122,10 @@ class Predictor(nn.Module):
         cond = self._context_with_noise(self.context(batch), samples)
         return to_positions(batch, self.decode(batch, cond))
 
-    def evaluation_variants(self) -> dict[str, dict]:
-        """Other ways to predict that the trainer also scores, by metric suffix."""
+    def evaluation_variants(self, task: int | None = None) -> dict[str, dict]:
+        """Other ways to predict that the trainer also scores, by metric suffix (``task``: the
+        scored task's index, for a rule that needs it)."""
         return {}
-
-
-class GaussianHead(nn.Module):
-    """MLP (32, 32, LeakyReLU) then mean and log-variance of a diagonal Gaussian (GCRL Mapping)."""
-
-    def __init__(self, in_dim: int, out_dim: int):
-        super().__init__()
-        self.body = nn.Sequential(
-            nn.Linear(in_dim, 32), nn.LeakyReLU(), nn.Linear(32, 32), nn.LeakyReLU()
-        )
-        self.mean = nn.Linear(32, out_dim)
-        self.logvar = nn.Linear(32, out_dim)
-
-    def forward(self, h: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        h = self.body(h)
-        return self.mean(h), self.logvar(h).clamp(-8, 4)
 
 
 @dataclass
@@ -214,9 +200,12 @@ class C2INetModel(Predictor):
             context = torch.cat([context, self.per_agent(c, batch)], -1)
         return self.to_z(context)
 
-    def sample_c(self, batch: Batch, post: Posteriors, samples: int, c_source: str):
+    def sample_c(
+        self, batch: Batch, post: Posteriors, samples: int, c_source: str, task: int | None = None
+    ):
         """``samples`` draws of C (S, N or B, dc) by a test-time rule, or at the posterior mean
-        (``posterior_mean``); one C per agent, or per scene with ``c_per="scene"``, as trained."""
+        (``posterior_mean``); ``own``: from the queue components task ``task`` added; one C per
+        agent, or per scene with ``c_per="scene"``, as trained."""
         mc, lc = post.c_mean, post.c_logvar
         mixture = self.queue.mixture
         if c_source == "posterior":
@@ -225,6 +214,9 @@ class C2INetModel(Predictor):
             return mc.expand(samples, *mc.shape)
         if c_source == "prior":  # the back-door average over P(C), Eq 16
             return mixture.sample(samples * len(mc)).view(samples, len(mc), -1)
+        if c_source == "own":  # the components the scored task added (issue 61)
+            own = self.queue.task_mixture(task)
+            return own.sample(samples * len(mc)).view(samples, len(mc), -1)
         if c_source == "responsible":  # k ~ p(k | X), then c from component k
             weights = responsibilities(mixture, mc, lc)  # (n, K)
             k = torch.multinomial(weights, samples, replacement=True).T  # (S, n)
@@ -233,11 +225,17 @@ class C2INetModel(Predictor):
         raise ValueError(f"c_source {c_source!r}: expected one of {', '.join(C_SOURCES)}")
 
     def latents(
-        self, batch: Batch, post: Posteriors, samples: int, c_source: str, z_mean: bool = False
+        self,
+        batch: Batch,
+        post: Posteriors,
+        samples: int,
+        c_source: str,
+        z_mean: bool = False,
+        task: int | None = None,
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
         """C (S, N or B, dc) by ``c_source``, then Z (S, N, dz) from Q(Z|X,C) (at its mean with
         ``z_mean``), with Q(Z|X,C)'s mean and log-variance."""
-        c = self.sample_c(batch, post, samples, c_source)
+        c = self.sample_c(batch, post, samples, c_source, task)
         mz, lz = self.z_posterior(batch, post, c)
         z = mz if z_mean else gaussian_sample(mz, lz, torch.randn_like(mz))
         return z, c, mz, lz
@@ -374,27 +372,21 @@ class C2INetModel(Predictor):
         c_source: str | None = None,
         z_mean: bool = False,
         post: Posteriors | None = None,
+        task: int | None = None,
     ) -> torch.Tensor:
         """K sampled futures in metres (K, 12, N, 2): C by ``c_source`` (default: config), then
-        Z from Q(Z|X,C). ``post``: the batch's posteriors, when the caller has them already."""
+        Z from Q(Z|X,C). ``post``: the batch's posteriors, when the caller has them already;
+        ``task``: the scored task's index, for the ``own`` rule."""
         post = self.posteriors(batch) if post is None else post
-        z, c, _, _ = self.latents(batch, post, samples, c_source or self.config.c_source, z_mean)
+        source = c_source or self.config.c_source
+        z, c, _, _ = self.latents(batch, post, samples, source, z_mean, task)
         return to_positions(batch, self.decode(batch, self.conditions(batch, post, z, c)))
 
-    def evaluation_variants(self) -> dict[str, dict]:
-        """Every test-time rule but the default, scored beside it (``ade_c_prior`` ...)."""
-        return {f"c_{s}": {"c_source": s} for s in C_SOURCES if s != self.config.c_source}
-
-
-class ConstantVelocity(nn.Module):
-    """Repeats the last observed displacement: no training, the floor every learner must beat."""
-
-    @torch.no_grad()
-    def predict(self, batch: Batch, samples: int) -> torch.Tensor:
-        steps = torch.arange(1, len(batch.fut) + 1, dtype=batch.obs.dtype, device=batch.obs.device)
-        steps = steps[:, None, None]
-        future = batch.obs[-1] + steps * batch.obs_rel[-1]
-        return future.expand(samples, *future.shape)
-
-    def evaluation_variants(self) -> dict[str, dict]:
-        return {}
+    def evaluation_variants(self, task: int | None = None) -> dict[str, dict]:
+        """Every test-time rule but the default, scored beside it (``ade_c_prior`` ...); for a
+        task ``task`` that added components to the queue, also C from those alone
+        (``ade_c_own``: can an old task be served by what it left?)."""
+        rules = {f"c_{s}": {"c_source": s} for s in C_SOURCES if s != self.config.c_source}
+        if task is not None and task in self.queue.owners:
+            rules["c_own"] = {"c_source": "own", "task": task}
+        return rules

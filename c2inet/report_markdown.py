@@ -114,7 +114,8 @@ def _summaries(methods: dict[str, dict[str, Any]], labels: list[str], k: int, un
         "test-time rules for C: from the posterior Q(C|X) (their default row, GCRL's practice), "
         "*c from prior* (Eq 16 literally: C drawn from P(C), the queue's mixture) and *c from "
         "responsible* (C drawn from the queue component most responsible for the observed past); "
-        "Z is then drawn from Q(Z|X,C).",
+        "C2INet's old tasks also under *c from own* (C drawn from the components that task "
+        "added to the queue alone). Z is then drawn from Q(Z|X,C).",
         "",
         f"Best of K = {k}, the minimum taken per scene (joint):",
         "",

@@ -237,7 +237,7 @@ class ContinualTrainer:
                 self._train_task(ctx)
             for j, other in enumerate(self.tasks if cfg.eval_unseen else self.tasks[: i + 1]):
                 scores = evaluate_all(
-                    model, other.test, cfg.k, cfg.seed + j, cfg.eval_batch_scenes, cfg.test_rules
+                    model, other.test, cfg.k, cfg.seed + j, cfg.eval_batch_scenes, cfg.test_rules, j
                 )
                 for metric, value in scores.items():
                     result.matrices.setdefault(metric, np.full((n, n), np.nan))[i, j] = value

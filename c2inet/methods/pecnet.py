@@ -19,9 +19,9 @@ from torch import nn
 
 from c2inet.batch import Batch, variety_loss
 from c2inet.data import PRED_LEN
-from c2inet.gaussians import gaussian_sample, kl_standard_normal
+from c2inet.gaussians import GaussianHead, gaussian_sample, kl_standard_normal
 from c2inet.methods.base import Method
-from c2inet.model import GaussianHead, LossOutput, Predictor, to_positions
+from c2inet.model import LossOutput, Predictor, to_positions
 from c2inet.model_config import ModelConfig
 from c2inet.options import Tunable, require
 

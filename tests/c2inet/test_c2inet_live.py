@@ -482,3 +482,24 @@ def test_data_like_anchors_are_the_stored_windows_and_follow_the_components(trai
     anchors = trainer.model.anchors
     assert len(anchors) == 2 * 64 and anchors.inputs.positions.shape[1:] == (20, 2)
     assert result.summaries[-1]["memory_floats"] >= anchors.inputs.positions.size
+
+
+def test_the_own_rule_draws_only_from_the_scored_tasks_components():
+    """C for an old task from the components that task added (issue 61): a planted queue whose
+    task 0 owns the components at -5 and task 1 the one at +5."""
+    model = get_method("c2inet-online")(ModelConfig()).build_model()
+    dim = model.config.c_dim
+    queue = model.queue
+    queue.reset(torch.full((dim,), -5.0), torch.full((dim,), -4.0), owner=0)
+    queue.add(torch.full((dim,), -6.0), torch.full((dim,), -4.0), 0.5, owner=0)
+    queue.add(torch.full((dim,), 5.0), torch.full((dim,), -4.0), 0.5, owner=1)
+    batch = make_batch(toy_tasks(4)[0].train)
+    post = model.posteriors(batch)
+    old = model.sample_c(batch, post, 32, "own", task=0)
+    assert (old < -4).all() and (old > -7).all()  # never the newer task's component
+    new = model.sample_c(batch, post, 32, "own", task=1)
+    assert (new > 4).all()
+    assert (model.sample_c(batch, post, 32, "prior") > 0).any()  # the prior draws both
+    assert model.evaluation_variants(0)["c_own"] == {"c_source": "own", "task": 0}
+    assert "c_own" not in model.evaluation_variants(2)  # a task that added nothing
+    assert "c_own" not in model.evaluation_variants()

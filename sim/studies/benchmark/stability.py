@@ -20,14 +20,20 @@ from c2inet.significance import ALPHA, LEVEL, holm, over_tunings, paired
 
 
 def finals(board: Path) -> dict[str, dict[int, float]]:
-    """Per method, each evaluation seed's final average point-prediction ADE."""
-    import pandas as pd
+    """Per method, each evaluation seed's final average point-prediction ADE (the mean over
+    every task after the curriculum's last)."""
+    import pyarrow.parquet as pq
 
-    rows = pd.read_parquet(board / "results.parquet")
-    rows = rows[rows["metric"] == "ade_k1"]
-    last = list(dict.fromkeys(rows["on_task"]))[-1]  # the curriculum's order
-    means = rows[rows["after_task"] == last].groupby(["method", "seed"])["value"].mean()
-    return {m: dict(means[m].items()) for m in means.index.get_level_values(0).unique()}
+    rows = [r for r in pq.read_table(board / "results.parquet").to_pylist()
+            if r["metric"] == "ade_k1"]  # fmt: skip
+    last = list(dict.fromkeys(r["on_task"] for r in rows))[-1]  # the curriculum's order
+    cells: dict[str, dict[int, list[float]]] = {}
+    for r in rows:
+        if r["after_task"] == last:
+            cells.setdefault(r["method"], {}).setdefault(r["seed"], []).append(r["value"])
+    return {
+        m: {s: float(np.mean(v)) for s, v in sorted(seeds.items())} for m, seeds in cells.items()
+    }
 
 
 def verdict(entry: dict[str, Any]) -> str:
