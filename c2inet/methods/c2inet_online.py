@@ -42,6 +42,10 @@ class C2INetOptions(QueueConfig):
 
     interval: int = 2  # |E|: epochs between new components (11 a task at 20 epochs: pruning runs)
     samples: int = 1000  # S: agents sampled for the initial prior and the targets
+    # the upper bound of issue 61, not the method: no growth or pruning; after each task its
+    # components are replaced by one, its trained posterior moment-matched, frozen, every task
+    # weighing the same (score old tasks with the ``own`` rule: C from the true task's component)
+    oracle: bool = False
 
     def __post_init__(self):
         super().__post_init__()
@@ -117,7 +121,7 @@ class C2INetOnline(Method):
         queue.add(mean, logvar, weight, owner=ctx.index)
 
     def after_epoch(self, ctx: TaskContext, epoch: int) -> None:
-        if (epoch + 1) % self.options.interval:
+        if self.options.oracle or (epoch + 1) % self.options.interval:
             return
         queue = ctx.model.queue
         target = self._target(ctx, *self._current_posterior(ctx))
@@ -127,7 +131,9 @@ class C2INetOnline(Method):
     def after_task(self, ctx: TaskContext) -> None:
         model = ctx.model
         queue = model.queue
-        self.pruned.append(len(queue.prune()))
+        self.pruned.append(0 if self.options.oracle else len(queue.prune()))
+        if self.options.oracle:
+            self._freeze_oracle(ctx)
         self.queue_sizes.append(len(queue))
         hold = self.queue_config.distill_decoder or self.queue_config.distill_encoder
         if hold and ctx.index in queue.owners:  # pruning may remove all of a task's components
@@ -137,6 +143,22 @@ class C2INetOnline(Method):
             else:
                 new = make_anchors(model, components, count)
             model.anchors = new if model.anchors is None else Anchors.concat([model.anchors, new])
+
+    def _freeze_oracle(self, ctx: TaskContext) -> None:
+        """The oracle's queue after task t: its components one per task, this task's the
+        moment-matched posterior of its sampled agents under the trained encoder, the others
+        as their tasks left them, every task weighing 1/t."""
+        queue = ctx.model.queue
+        for index in reversed([i for i, o in enumerate(queue.owners) if o == ctx.index]):
+            if len(queue.owners) > 1:
+                queue.remove(index)
+        mean, logvar = moment_match(*self._current_posterior(ctx))
+        if queue.owners == [ctx.index]:  # the first task: its start component replaced
+            queue.reset(mean, logvar, owner=ctx.index)
+        else:
+            queue.add(mean, logvar, 0.5, owner=ctx.index)
+        weights = queue.mixture.weights
+        queue.mixture.weights = torch.full_like(weights, 1 / len(weights))
 
     def state_dict(self, model: torch.nn.Module) -> dict[str, Any]:
         return {

@@ -503,3 +503,29 @@ def test_the_own_rule_draws_only_from_the_scored_tasks_components():
     assert model.evaluation_variants(0)["c_own"] == {"c_source": "own", "task": 0}
     assert "c_own" not in model.evaluation_variants(2)  # a task that added nothing
     assert "c_own" not in model.evaluation_variants()
+
+
+def test_the_oracle_keeps_one_frozen_component_a_task_fitted_to_its_trained_posterior():
+    """``c2inet-online.oracle``: after each task the queue holds one component a task, equal
+    weights; a task's component never changes after its task; it is that task's posterior under
+    the trained encoder (the own rule then draws C from the true task's component)."""
+    snapshots = []
+
+    def keep(event, data):
+        if event == "task_end":
+            queue = data["model"].queue
+            snapshots.append((list(queue.owners), queue.mixture.means.clone(),
+                              queue.mixture.weights.clone()))  # fmt: skip
+
+    method = get_method("c2inet-online")(ModelConfig(), {"oracle": True, "interval": 1})
+    ContinualTrainer(method, toy_tasks(16), TrainConfig(epochs=2, k=3), observers=[keep]).run()
+    (owners1, means1, weights1), (owners2, means2, weights2) = snapshots
+    assert owners1 == [0] and owners2 == [0, 1]  # no growth within a task, no pruning
+    torch.testing.assert_close(means2[0], means1[0])  # the first task's component is frozen
+    torch.testing.assert_close(weights2, torch.tensor([0.5, 0.5]))
+    assert (means2[1] - means2[0]).abs().max() > 1e-3  # the second task's own posterior
+    online = get_method("c2inet-online")(ModelConfig(), {"interval": 1})
+    grown = []
+    observer = [lambda e, d: grown.append(len(d["model"].queue)) if e == "task_end" else None]
+    ContinualTrainer(online, toy_tasks(16), TrainConfig(epochs=2, k=3), observers=observer).run()
+    assert grown[-1] > 2  # without the oracle the queue grows within each task

@@ -101,7 +101,7 @@ def staged(tmp_path_factory):
     base = ExperimentConfig(
         "crowd_noise_0.1,0.2", methods=("finetune", "ewc", "cv"), quick=True, record=False
     )
-    design = Design(lr_low=1e-3, lr_high=1e-2, lr_points=3, draws=2, extend=1)
+    design = Design(lr_low=1e-3, lr_high=1e-2, lr_points=3, draws=2, extend=0)
     execution = Execution(cache=root / "cache")
     return root, base, design, execution, run_staged(base, design, root / "a", execution)
 
