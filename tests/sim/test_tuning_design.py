@@ -191,3 +191,17 @@ def test_sim_run_takes_a_presets_tuned_settings_by_its_name(capsys):
     assert run(["--scenario", "crowd_radius_0.1,0.2", "--methods", "derpp,ewc", "--tuned-from",
                 "radius", "--print-config"]) == 2  # fmt: skip
     assert "different train.lr" in capsys.readouterr().err
+
+
+def test_two_presets_optuna_designs_differ_and_one_presets_does_not_follow_its_curriculum():
+    import optuna
+    from optuna.distributions import FloatDistribution
+
+    from sim.experiment.tuning import _sampler
+
+    def first_draw(prefix: str) -> float:  # a start-up draw (index 3 of 10 trials)
+        study = optuna.create_study(sampler=_sampler(0, "finetune", 3, 10, "tpe", prefix))
+        return study.ask({"train.lr": FloatDistribution(1e-5, 5e-2, log=True)}).params["train.lr"]
+
+    assert first_draw("radius-aaaa:") == first_draw("radius-bbbb:")  # another curriculum
+    assert first_draw("radius-aaaa:") != first_draw("density-aaaa:")  # another preset
