@@ -167,6 +167,15 @@ class BenchConfig:
     def __post_init__(self):
         object.__setattr__(self, "compare", tuple(self.compare))
         object.__setattr__(self, "given", self.base.settings)
+        self._check()
+        object.__setattr__(self, "base", replace(self.base, settings=self._protocol_settings()))
+        borrowed = None
+        if self.tuned_from is not None:
+            borrowed = borrowed_tuning(Path(self.tuned_from), self.base, self.ranked)
+        object.__setattr__(self, "borrowed", borrowed)
+
+    def _check(self) -> None:
+        """One line for an option out of range, before anything runs."""
         if REFERENCE not in self.ranked:
             raise InputError(
                 f"methods: the board tests every method against {REFERENCE}; include it"
@@ -185,6 +194,8 @@ class BenchConfig:
             raise InputError(f"--width {self.width:g}: expected metres in (0, 1]")
         if self.max_seeds < self.base.seeds:
             raise InputError(f"--max-seeds {self.max_seeds}: below --seeds {self.base.seeds}")
+        if self.replay_budget is not None and self.replay_budget < 1:
+            raise InputError(f"replay budget must be at least 1 scene, got {self.replay_budget}")
         if self.tune_scenario is not None:
             tuning = parse_scenario(self.tune_scenario, list(self.base.scenarios_dir))
             if len(tuning) < 3:
@@ -192,15 +203,15 @@ class BenchConfig:
                     f"--tune-scenario {self.tune_scenario!r}: {len(tuning)} task(s); tuning "
                     "needs three or more, or no method's care for old tasks can matter"
                 )
+
+    def _protocol_settings(self) -> dict[str, dict[str, Any]]:
+        """The user's settings over the protocol's: batch, the preset's data sizes, the equal
+        replay budget, joint-scratch trained once."""
         settings = dict(self.base.settings)
         settings["train"] = {"batch_scenes": BATCH, **settings.get("train", {})}
         if self.data:
             settings["data"] = {**self.data, **settings.get("data", {})}
         if self.replay_budget is not None:
-            if self.replay_budget < 1:
-                raise InputError(
-                    f"replay budget must be at least 1 scene, got {self.replay_budget}"
-                )
             tasks = len(self.base.specs)
             for name in self.base.methods:
                 options = get_method(name).replay_options(self.replay_budget, tasks)
@@ -208,11 +219,7 @@ class BenchConfig:
                     settings[name] = {**options, **settings.get(name, {})}
         if "joint-scratch" in self.base.methods:  # its one meaningful row: trained once
             settings["joint-scratch"] = {"final_only": True, **settings.get("joint-scratch", {})}
-        object.__setattr__(self, "base", replace(self.base, settings=settings))
-        borrowed = None
-        if self.tuned_from is not None:
-            borrowed = borrowed_tuning(Path(self.tuned_from), self.base, self.ranked)
-        object.__setattr__(self, "borrowed", borrowed)
+        return settings
 
     @property
     def references(self) -> tuple[str, ...]:
