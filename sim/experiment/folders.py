@@ -47,6 +47,7 @@ RUN_FILES = {
     "tuning.db",  # a tuning's Optuna studies (in its own marked folder)
     "tuning.json",
     "mlflow.db",  # --logger mlflow's store, the run's or its sweep's
+    ".mlflow-parents.lock",  # --logger mlflow: its jobs share one parent run a run folder
 }
 RUN_FOLDERS = {"jobs", "matrices", "figures", "logs", "tensorboard", "cache", "cells"}
 RUN_FOLDERS |= {"mlartifacts", "wandb"}  # the trackers' copies of a run's report and figures

@@ -327,8 +327,11 @@ def test_loggers_write_the_numbers_of_metrics_json(tmp_path, capsys):
     (experiment,) = [e for e in client.search_experiments() if e.name.endswith("/run")]
     runs = client.search_runs([experiment.experiment_id])
     (tracked,) = [r for r in runs if "c2i_job" in r.data.tags]
-    (report,) = [r for r in runs if "c2i_report" in r.data.tags]  # the run's files, as artifacts
-    assert report.data.tags["c2i_report"] == "report"
+    (report,) = [r for r in runs if "c2i_parent" in r.data.tags]  # the run, its files attached
+    assert report.info.run_name == "run" and tracked.info.run_name == "finetune seed 0"
+    assert tracked.data.tags["mlflow.parentRunId"] == report.info.run_id
+    assert report.info.start_time <= tracked.info.start_time < tracked.info.end_time
+    assert tracked.info.end_time <= report.info.end_time  # it ends with the report's files
     shown = {a.path for a in client.list_artifacts(report.info.run_id)}
     assert {"report.md", "metrics.json", "figures"} <= shown
     figures = {a.path for a in client.list_artifacts(report.info.run_id, "figures")}
@@ -384,12 +387,14 @@ def test_a_sweeps_runs_are_one_tracking_experiment_side_by_side(tmp_path):
     assert sweep_main([*argv, "--jobs", "2", "--out", str(out)]) == 0
     client = MlflowClient(f"sqlite:///{out.resolve() / 'mlflow.db'}")
     (experiment,) = [e for e in client.search_experiments() if e.name.endswith("/sweep")]
-    names = sorted(r.info.run_name for r in client.search_runs([experiment.experiment_id]))
+    runs = client.search_runs([experiment.experiment_id])
     variants = sorted(p.name for p in (out / "crowd_noise_0.1,0.2").iterdir())
-    assert len(variants) == 2 and len(names) == 4  # a job and a report a variant
-    for variant in variants:
-        assert f"crowd_noise_0.1,0.2/{variant}/jobs/finetune/seed_0" in names
-        assert f"crowd_noise_0.1,0.2/{variant}/report" in names
+    assert len(variants) == 2 and len(runs) == 4  # a variant's run and its job's
+    parents = {r.info.run_name: r.info.run_id for r in runs if "c2i_parent" in r.data.tags}
+    assert sorted(parents) == [f"crowd_noise_0.1,0.2/{v}" for v in variants]
+    children = [r for r in runs if "c2i_job" in r.data.tags]
+    assert {r.info.run_name for r in children} == {"finetune seed 0"}  # short, under its variant
+    assert {r.data.tags["mlflow.parentRunId"] for r in children} == set(parents.values())
     assert not list(out.glob("*/*/mlflow.db"))  # no store of its own in a variant
     for job in out.glob("*/*/jobs/finetune/seed_0"):
         (offline,) = (job / "wandb").glob("offline-run-*/run-*.wandb")

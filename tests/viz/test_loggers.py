@@ -47,7 +47,8 @@ def test_mlflow_keeps_every_parameter_and_metric_in_requests_a_server_takes(
     assert all(m <= 1000 and p <= 100 for m, p in sizes)
     assert max(m for m, _ in sizes) == 1000 and max(p for _, p in sizes) == 100
     experiment = logger.client.get_experiment_by_name("runs/20261202-000000")
-    (tracked,) = logger.client.search_runs([experiment.experiment_id])
+    runs = logger.client.search_runs([experiment.experiment_id])
+    (tracked,) = [r for r in runs if "c2i_job" in r.data.tags]  # beside its run folder's
     assert len(tracked.data.params) == 250 and tracked.data.params["p249"] == "249"
     assert len(tracked.data.metrics) == 1200
 
@@ -66,10 +67,11 @@ def test_two_run_folders_of_one_name_logging_to_one_store_keep_each_others_runs(
         logger("epoch_end", {"task": 0, "epoch": 0, "nll": 1.0})
         logger.close()
     experiment = logger.client.get_experiment_by_name("exp/r")
-    folders = [
-        r.data.tags["c2i_folder"] for r in logger.client.search_runs([experiment.experiment_id])
-    ]
+    tracked = logger.client.search_runs([experiment.experiment_id])
+    folders = [r.data.tags["c2i_folder"] for r in tracked if "c2i_job" in r.data.tags]
     assert sorted(folders) == sorted(str(run.resolve()) for run in runs)
+    parents = [r.data.tags["c2i_folder"] for r in tracked if "c2i_parent" in r.data.tags]
+    assert sorted(parents) == sorted(str(run.resolve()) for run in runs)  # one a folder, kept
 
 
 def test_a_resumed_job_has_one_wandb_run_not_two(tmp_path: Path):

@@ -26,8 +26,10 @@ class MLflowLogger(Logger):
     sweep's or benchmark's it belongs to: SQLite, ``mlflow ui --backend-store-uri
     sqlite:///GROUP/mlflow.db``) or on the server of ``mlflow=URI``: the configuration as
     parameters, every number as a metric at its step. The experiment is the group's folder
-    (``scenario/timestamp``, or the sweep's), so a sweep's runs compare side by side; each run
-    folder's report, figures and recording are the artifacts of one more run, ``.../report``."""
+    (``scenario/timestamp``, or the sweep's), so a sweep's runs compare side by side. Each run
+    folder (a sweep's variant) is a parent run, named by its place in the group, whose children
+    are its jobs, named short (``finetune seed 0``), and whose artifacts are the folder's report,
+    figures and recording; a run starts when its job starts and ends when it ends."""
 
     name = "mlflow"
     title = "an MLflow run per job, in the run's mlflow.db or on the server of mlflow=URI"
@@ -38,8 +40,9 @@ class MLflowLogger(Logger):
         group = Path(options.get("group") or run_folder).resolve()
         self.epochs, self.tasks = epochs, tasks
         self.client, experiment = self.experiment(group, options.get("uri"))
+        parent = _parent_run(self.client, experiment, group, run_folder)
         self.run_id = _fresh_run(
-            self.client, experiment, group, run_folder, folder.resolve(), "c2i_job"
+            self.client, experiment, run_folder, run_folder, folder.resolve(), "c2i_job", parent
         )
         params = [_param(k, v) for k, v in (options.get("params") or {}).items()]
         for start in range(0, len(params), 100):  # MLflow takes 100 parameters a request
@@ -52,11 +55,10 @@ class MLflowLogger(Logger):
 
     @classmethod
     def log_outputs(cls, run_folder: Path, group: Path, value: str | None, files: list[Path]):
-        """The run's report, figures and recording as the artifacts of its ``report`` run."""
+        """The run's report, figures and recording as the artifacts of its parent run, which
+        ends with them."""
         client, experiment = cls.experiment(group, value)
-        run_id = _fresh_run(
-            client, experiment, group, run_folder, run_folder / "report", "c2i_report"
-        )
+        run_id = _parent_run(client, experiment, group, run_folder)
         for path in files:
             where = path.parent.relative_to(run_folder).as_posix()
             client.log_artifact(run_id, str(path), None if where == "." else where)
@@ -111,16 +113,53 @@ def _param(key: str, value: Any):
     return Param(key, str(value)[:6000])  # MLflow's limit on a parameter's value
 
 
-def _fresh_run(client, experiment: str, group: Path, run_folder: Path, path: Path, kind: str):
-    """A new MLflow run for ``path`` (a job's folder, or a run's report) of ``run_folder``,
-    named by its place in ``group``; the earlier one of the same path and run folder is deleted
-    first (a resumed job logs everything again). Tagged by the run folder's own hash, so two
-    folders of one name logging to one store never delete each other's runs."""
-    name = path.relative_to(group).as_posix() if path.is_relative_to(group) else path.name
+def _short(name: str) -> str:
+    """A job's place in its run folder as a run's name: ``jobs/finetune/seed_0`` ->
+    ``finetune seed 0``."""
+    parts = name.removeprefix("jobs/").split("/")
+    return " ".join(p.replace("seed_", "seed ") for p in parts)
+
+
+def _fresh_run(
+    client,
+    experiment: str,
+    base: Path,
+    run_folder: Path,
+    path: Path,
+    kind: str,
+    parent: str | None = None,
+):
+    """A new MLflow run for ``path`` (a job's folder) of ``run_folder``, tagged by its place in
+    ``base`` and named short, a child of ``parent``; the earlier one of the same path and run
+    folder is deleted first (a resumed job logs everything again). Tagged by the run folder's
+    own hash, so two folders of one name logging to one store never delete each other's runs."""
+    name = path.relative_to(base).as_posix() if path.is_relative_to(base) else path.name
     owner = hashlib.sha256(str(run_folder).encode()).hexdigest()[:16]
     for old in client.search_runs(
         [experiment], f"tags.{kind} = '{name}' and tags.c2i_run = '{owner}'"
     ):
         client.delete_run(old.info.run_id)
     tags = {kind: name, "c2i_run": owner, "c2i_folder": str(run_folder)}
-    return client.create_run(experiment, run_name=name, tags=tags).info.run_id
+    if parent is not None:
+        tags["mlflow.parentRunId"] = parent
+    return client.create_run(experiment, run_name=_short(name), tags=tags).info.run_id
+
+
+def _parent_run(client, experiment: str, group: Path, run_folder: Path) -> str:
+    """The run of ``run_folder`` (a sweep's variant, or the run itself), named by its place in
+    ``group``, made by its first job (the jobs of a folder ask under a lock, so they share
+    one) and found again by the others, by the report and by a resumed run."""
+    import fcntl
+
+    name = run_folder.relative_to(group).as_posix() if run_folder.is_relative_to(group) else "."
+    name = group.name if name == "." else name
+    owner = hashlib.sha256(str(run_folder).encode()).hexdigest()[:16]
+    query = f"tags.c2i_parent = '{name}' and tags.c2i_run = '{owner}'"
+    group.mkdir(parents=True, exist_ok=True)
+    with open(group / ".mlflow-parents.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        found = client.search_runs([experiment], query)
+        if found:
+            return found[0].info.run_id
+        tags = {"c2i_parent": name, "c2i_run": owner, "c2i_folder": str(run_folder)}
+        return client.create_run(experiment, run_name=name, tags=tags).info.run_id
