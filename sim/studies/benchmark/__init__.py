@@ -102,7 +102,7 @@ def add_artefact_options(p) -> None:
     g.add_argument(
         "--tuned-from",
         type=Path,
-        metavar="BOARD",
+        metavar="FILE",
         help="no tuning: every method's settings from this file (a tuning artefact, a board's "
         "folder or tuning.json) instead of the preset's shipped tuning, e.g. to rank the same "
         "settings on another curriculum",
@@ -275,9 +275,10 @@ class Benchmark(Study):
             tuning = [f for f, given in self.tuning_flags(args) if given]
             if tuning:
                 whose = f"the {preset.name} board" if preset else "the board"
+                how = "drop --tuned-from" if args.tuned_from else "add --retune"
                 raise InputError(
                     f"{', '.join(tuning)}: {whose} evaluates the tuning in {artefact}, tuned "
-                    "already; add --retune to tune anew"
+                    f"already; {how} to tune anew"
                 )
             return artefact, None
         kind = args.design or ("staged" if preset else "optuna")
