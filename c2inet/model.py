@@ -208,15 +208,15 @@ class C2INetModel(Predictor):
         agent, or per scene with ``c_per="scene"``, as trained."""
         mc, lc = post.c_mean, post.c_logvar
         mixture = self.queue.mixture
-        if c_source == "posterior":
+        if c_source == "own" and task in getattr(self.queue, "owners", ()):  # issue 61
+            own = self.queue.task_mixture(task)  # the components the scored task added
+            return own.sample(samples * len(mc)).view(samples, len(mc), -1)
+        if c_source in ("posterior", "own"):  # own, for a task that left none: the posterior
             return gaussian_sample(mc, lc, torch.randn(samples, *mc.shape, device=mc.device))
         if c_source == "posterior_mean":
             return mc.expand(samples, *mc.shape)
         if c_source == "prior":  # the back-door average over P(C), Eq 16
             return mixture.sample(samples * len(mc)).view(samples, len(mc), -1)
-        if c_source == "own":  # the components the scored task added (issue 61)
-            own = self.queue.task_mixture(task)
-            return own.sample(samples * len(mc)).view(samples, len(mc), -1)
         if c_source == "responsible":  # k ~ p(k | X), then c from component k
             weights = responsibilities(mixture, mc, lc)  # (n, K)
             k = torch.multinomial(weights, samples, replacement=True).T  # (S, n)
@@ -383,10 +383,11 @@ class C2INetModel(Predictor):
         return to_positions(batch, self.decode(batch, self.conditions(batch, post, z, c)))
 
     def evaluation_variants(self, task: int | None = None) -> dict[str, dict]:
-        """Every test-time rule but the default, scored beside it (``ade_c_prior`` ...); for a
-        task ``task`` that added components to the queue, also C from those alone
-        (``ade_c_own``: can an old task be served by what it left?)."""
+        """Every test-time rule but the default, scored beside it (``ade_c_prior`` ...); with a
+        queue and a task ``task``, also C from the components that task added alone
+        (``ade_c_own``: can an old task be served by what it left? a task that left none, not
+        yet learnt or pruned away, is scored with the posterior)."""
         rules = {f"c_{s}": {"c_source": s} for s in C_SOURCES if s != self.config.c_source}
-        if task is not None and task in self.queue.owners:
+        if task is not None and hasattr(self.queue, "task_mixture"):  # C2INet's queue alone
             rules["c_own"] = {"c_source": "own", "task": task}
         return rules

@@ -501,8 +501,13 @@ def test_the_own_rule_draws_only_from_the_scored_tasks_components():
     assert (new > 4).all()
     assert (model.sample_c(batch, post, 32, "prior") > 0).any()  # the prior draws both
     assert model.evaluation_variants(0)["c_own"] == {"c_source": "own", "task": 0}
-    assert "c_own" not in model.evaluation_variants(2)  # a task that added nothing
+    post.c_mean = torch.zeros_like(post.c_mean)
+    post.c_logvar = torch.full_like(post.c_logvar, -8.0)
+    none = model.sample_c(batch, post, 32, "own", task=2)  # a task that added nothing
+    assert none.abs().max() < 0.2  # the posterior, not the queue
     assert "c_own" not in model.evaluation_variants()
+    mog = get_method("mog")(ModelConfig()).build_model()
+    assert "c_own" not in mog.evaluation_variants(0)  # its prior keeps no task's components
 
 
 def test_the_oracle_keeps_one_frozen_component_a_task_fitted_to_its_trained_posterior():
