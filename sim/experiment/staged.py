@@ -3,7 +3,8 @@ then its own knobs one at a time, every setting on the same data draws, each sta
 fitted through its runs. The runs are ordinary one-seed experiments on validation data (as
 Optuna's trials are: ``trials.py``), each in a folder named by its stage, settings and draw, so
 a killed tuning resumes to the same choices: the design reads only finished runs, and the runs
-a round asks again resume from their folders.
+a round asks again resume from their folders. A folder is named by the settings and the draw
+alone, so settings two stages share (a stage's centre, the chosen, the defaults) run once.
 
 Returns, per method, what ``run_tuning`` returns (``settings``, ``objective``,
 ``default_objective``, ``trials``: every run) plus ``stages`` (each knob's points, their means,
@@ -76,11 +77,12 @@ class Runner:
         """Every (search, stage name, params) on every draw, run together (those already run
         are read from the search); the mean objective of each over the draws (infinite where
         one diverged)."""
-        planned, owners = [], []
+        planned, owners, asked = [], [], set()
         for search, stage, params in wanted:
             for draw in range(self.design.draws):
-                name = run_name(stage, params, draw)
-                if name not in search.runs:
+                name = run_name(params, draw)
+                if name not in search.runs and (search.method, name) not in asked:
+                    asked.add((search.method, name))  # one run, however many stages ask it
                     planned.append(self.plan(search.method, params, draw, name))
                     owners.append((search, stage, params, draw, name))
         done = run_together(planned, self.execution, resume=True, argv=[], figures=False)
@@ -95,8 +97,8 @@ class Runner:
                 "cpu_seconds": job.cpu_seconds,
             }
         means = []
-        for search, stage, params in wanted:
-            names = [run_name(stage, params, d) for d in range(self.design.draws)]
+        for search, _, params in wanted:
+            names = [run_name(params, d) for d in range(self.design.draws)]
             scores = [search.runs[name]["objective"] for name in names]
             means.append(math.inf if None in scores else float(np.mean(scores)))
         return means
@@ -168,13 +170,14 @@ def advance(search: MethodSearch, design: Design, means: dict[Any, float]) -> No
                 search.extended += 1
                 return
     value, how = choose(space, means)
+    side = near_bound(space, value)
     search.stages.append(
         {
             "knob": search.key,
             "points": [{"value": v, "mean": _finite(m)} for v, m in means.items()],
             "chosen": value,
             "how": how,
-            **({"at_bound": near_bound(space, value)} if near_bound(space, value) else {}),
+            **({"at_bound": side} if side else {}),
         }
     )
     search.fixed[search.key] = value
@@ -197,11 +200,11 @@ def record(search: MethodSearch, objective: float, default: float) -> dict[str, 
     }
 
 
-def run_name(stage: str, params: dict[str, Any], draw: int) -> str:
-    """A run's folder name: its stage, a digest of its settings and its draw."""
+def run_name(params: dict[str, Any], draw: int) -> str:
+    """A run's folder name (under ``trials/METHOD/``): a digest of its settings, and its draw."""
     text = json.dumps(params, sort_keys=True, default=str)
     digest = hashlib.sha256(text.encode()).hexdigest()[:10]
-    return f"{stage.replace('.', '_')}-{digest}-draw{draw}"
+    return f"{digest}-draw{draw}"
 
 
 def _finite(value: float) -> float | None:

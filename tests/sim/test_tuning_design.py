@@ -179,7 +179,7 @@ def test_a_board_evaluates_its_presets_shipped_tuning_and_runs_no_trial(
     assert not (tmp_path / "no").exists()
 
 
-def test_sim_run_takes_a_presets_tuned_settings_by_its_name(capsys):
+def test_sim_run_takes_a_presets_tuned_settings_by_its_name(capsys, tmp_path):
     from sim.run import main as run
 
     assert run(["--scenario", "crowd_radius_0.1..0.6", "--methods", "derpp", "--tuned-from",
@@ -191,6 +191,13 @@ def test_sim_run_takes_a_presets_tuned_settings_by_its_name(capsys):
     assert run(["--scenario", "crowd_radius_0.1,0.2", "--methods", "derpp,ewc", "--tuned-from",
                 "radius", "--print-config"]) == 2  # fmt: skip
     assert "different train.lr" in capsys.readouterr().err
+    listed = tmp_path / "list.json"
+    listed.write_text("[1, 2]")
+    for given, why in ((str(listed), "expected a table of methods"), ("nope", "neither a preset")):
+        assert run(["--scenario", "crowd_radius_0.1,0.2", "--methods", "derpp", "--tuned-from",
+                    given, "--print-config"]) == 2  # fmt: skip
+        err = capsys.readouterr().err
+        assert why in err and err.count("\n") == 1
 
 
 def test_two_presets_optuna_designs_differ_and_one_presets_does_not_follow_its_curriculum():
@@ -205,3 +212,31 @@ def test_two_presets_optuna_designs_differ_and_one_presets_does_not_follow_its_c
 
     assert first_draw("radius-aaaa:") == first_draw("radius-bbbb:")  # another curriculum
     assert first_draw("radius-aaaa:") != first_draw("density-aaaa:")  # another preset
+
+
+def test_a_setting_two_stages_ask_runs_once(staged):
+    """The staged design names a run by its settings and draw: the chosen and the default
+    settings, where a stage already ran them, are read back, not run again."""
+    _, _, design, _, chosen = staged
+    for method in ("finetune", "ewc"):
+        runs = chosen[method]["trials"]
+        keys = [(json.dumps(r["params"], sort_keys=True), r["draw"]) for r in runs]
+        assert len(keys) == len(set(keys))  # no setting ran twice on one draw
+
+
+def test_the_shipped_tunings_are_the_committed_boards_own():
+    """The four presets whose shipped tuning is a committed board's Optuna tuning: made from
+    that board by ``from_board``, their settings equal to the board's tuning.json."""
+    import tempfile
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    for preset in ("density", "noise", "traffic", "eth-ucy"):
+        shipped = json.loads(artefacts.shipped(preset).read_text())
+        board = root / "docs" / "leaderboards" / preset
+        with tempfile.TemporaryDirectory() as tmp:
+            made = artefacts.from_board(board, preset, Path(tmp) / "a.json")
+        assert (
+            made["methods"] == shipped["methods"] == json.loads((board / "tuning.json").read_text())
+        )
+        assert shipped["design"]["kind"] == "optuna" and shipped["provenance"]["sha256"]

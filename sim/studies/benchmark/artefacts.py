@@ -14,8 +14,9 @@ import json
 from pathlib import Path
 from typing import Any
 
-from c2inet.errors import InputError
+from c2inet.errors import InputError, one_line
 from c2inet.files import file_digest, write_text_atomic
+from sim.experiment.folders import MAX_CONFIG_BYTES
 
 FORMAT = 1
 SHIPPED = Path(__file__).parent / "tunings"  # the package's artefacts, one a preset
@@ -25,6 +26,36 @@ def shipped(preset: str) -> Path | None:
     """The artefact the package ships for ``preset`` (None where it ships none)."""
     path = SHIPPED / f"{preset}.json"
     return path if path.is_file() else None
+
+
+def read_json(path: Path, option: str) -> Any:
+    """A small JSON file of ours, or one line saying why it cannot be read."""
+    try:
+        if not path.is_file():  # a FIFO or a device would never end
+            raise OSError("not a regular file")
+        if path.stat().st_size > MAX_CONFIG_BYTES:
+            raise OSError(f"larger than {MAX_CONFIG_BYTES} bytes")
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as error:
+        why = "nested too deeply" if isinstance(error, RecursionError) else str(error)
+        raise InputError(f"{option} {path}: cannot read it: {one_line(why)}") from None
+
+
+def read_tuning(given: Path, option: str = "--tuned-from") -> tuple[Path, dict, dict]:
+    """A tuning given as a file (an artefact or a board's ``tuning.json``) or a board's folder:
+    the file found, the whole table and its methods; one line where there is none or it is
+    not a table of methods."""
+    candidates = [given, given / "tuning.json", given / "tuning" / "tuning.json"]
+    path = next((c for c in candidates if c.is_file()), None)
+    if path is None:
+        raise InputError(f"{option} {given}: no tuning.json there (a benchmark's folder or file)")
+    table = read_json(path, option)
+    if not isinstance(table, dict):
+        raise InputError(f"{option} {path}: expected a table of methods")
+    try:
+        return path, table, methods_of(table)
+    except InputError as error:
+        raise InputError(f"{option} {path}: {error}") from None
 
 
 def methods_of(table: dict[str, Any]) -> dict[str, Any]:
@@ -110,25 +141,19 @@ def tuned_settings(given: str, methods: tuple[str, ...], tasks: int) -> tuple[di
     job. The trainer's and the model's options are shared by every method of one run, so
     methods tuned to different ``train.*`` or ``model.*`` values are one line: run them one at
     a time (or the board)."""
-    path = shipped(given) if "/" not in given and not given.endswith(".json") else None
+    named = "/" not in given and not given.endswith(".json")  # a preset's name, or a file's
+    path = shipped(given) if named else None
     settings: dict[str, dict[str, Any]] = {}
     if path is not None:
         settings = _board_settings(given, methods, tasks)
-    path = path or Path(given)
-    if path.is_dir():
-        path = next((p for p in (path / "tuning.json", path / "tuning" / "tuning.json")
-                     if p.is_file()), path)  # fmt: skip
-    if not path.is_file():
+    elif named and not Path(given).exists():
         raise InputError(
             f"--tuned-from {given}: neither a preset that ships a tuning ({_names()}) nor a "
             "tuning file"
         )
-    try:
-        table = methods_of(json.loads(path.read_text(encoding="utf-8")))
-    except (OSError, UnicodeDecodeError, ValueError) as error:
-        raise InputError(f"--tuned-from {path}: cannot read it: {error}") from None
+    path, _, table = read_tuning(path or Path(given))
     for method in methods:
-        entry = table.get(method) if isinstance(table, dict) else None
+        entry = table.get(method)
         if not isinstance(entry, dict) or not isinstance(entry.get("settings"), dict):
             raise InputError(f"--tuned-from {path}: no chosen settings of {method!r}")
         for scope, values in entry["settings"].items():

@@ -9,18 +9,17 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from c2inet.errors import InputError, one_line
+from c2inet.errors import InputError
 from c2inet.files import file_digest
 from c2inet.methods.base import get_method
 from c2inet.report import REFERENCE
 from sim.experiment.config import ExperimentConfig
 from sim.experiment.design import Design
-from sim.experiment.folders import MAX_CONFIG_BYTES
 from sim.experiment.sweep import layered
 from sim.experiment.trials import TRIAL_TRAIN
 from sim.experiment.tuning import SAMPLERS, TuneConfig
 from sim.scenario import parse_scenario
-from sim.studies.benchmark.artefacts import methods_of
+from sim.studies.benchmark.artefacts import read_json, read_tuning
 from sim.studies.benchmark.presets import (
     BATCH,
     RACE,
@@ -36,19 +35,6 @@ from sim.studies.benchmark.presets import (
 LEAN = TRIAL_TRAIN
 
 
-def _read_json(path: Path, option: str) -> Any:
-    """A small JSON file of ours, or one line saying why it cannot be read."""
-    try:
-        if not path.is_file():  # a FIFO or a device would never end
-            raise OSError("not a regular file")
-        if path.stat().st_size > MAX_CONFIG_BYTES:
-            raise OSError(f"larger than {MAX_CONFIG_BYTES} bytes")
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as error:
-        why = "nested too deeply" if isinstance(error, RecursionError) else str(error)
-        raise InputError(f"{option} {path}: cannot read it: {one_line(why)}") from None
-
-
 def borrowed_tuning(
     given: Path, base: ExperimentConfig, ranked: tuple[str, ...]
 ) -> tuple[dict[str, dict[str, Any]], dict[str, Any]]:
@@ -58,17 +44,7 @@ def borrowed_tuning(
     board's ``leaderboard.json`` says it). The same settings on another curriculum separate what
     the data changes from what a tuning's draw changes (the sim-to-real ranking transfer)."""
     option = "--tuned-from"
-    candidates = [given, given / "tuning.json", given / "tuning" / "tuning.json"]
-    path = next((c for c in candidates if c.is_file()), None)
-    if path is None:
-        raise InputError(f"{option} {given}: no tuning.json there (a benchmark's folder or file)")
-    chosen = _read_json(path, option)
-    if not isinstance(chosen, dict):
-        raise InputError(f"{option} {path}: expected a table of methods")
-    try:
-        artefact, chosen = chosen, methods_of(chosen)
-    except InputError as error:
-        raise InputError(f"{option} {path}: {error}") from None
+    path, artefact, chosen = read_tuning(given, option)
     for method in ranked:
         entry = chosen.get(method)
         settings = entry.get("settings") if isinstance(entry, dict) else None
@@ -89,7 +65,7 @@ def borrowed_tuning(
         source["design"] = artefact.get("design")
         source["tuning_seed"] = artefact.get("seed")
     elif board is not None:
-        tuned_on = _read_json(board, option)
+        tuned_on = read_json(board, option)
         if isinstance(tuned_on, dict) and isinstance(tuned_on.get("tune_scenario"), str):
             source["tune_scenario"] = tuned_on["tune_scenario"]
     # no trial ran here: the board counts none, and says whose settings it used
