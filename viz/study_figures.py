@@ -237,8 +237,14 @@ def leaderboard_figure(board: dict[str, Any], path: Path) -> None:
     axes[1].axvline(0, color="0.7", lw=0.8)
     axes[0].set_yticks(rows, names)
     axes[0].invert_yaxis()
+    if board.get("tuned_from"):  # evaluated from a tuning made elsewhere: no trial ran here
+        tuning = f"settings from {Path(board['tuned_from']['file']).name}"
+    elif board.get("design"):
+        tuning = "tuned by the staged design"
+    else:
+        tuning = f"{board['trials']} trials a method"
     fig.suptitle(
-        f"{board['scenario']}: {board['trials']} trials a method, {board['seeds']} seeds "
+        f"{board['scenario']}: {tuning}, {board['seeds']} seeds "
         f"(bars: 95 % intervals of the mean; * p < {board['alpha']} in a paired test against "
         f"{board['reference']}{', Holm-adjusted' if board.get('correction') else ''})",
         fontsize=9,
