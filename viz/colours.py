@@ -67,12 +67,15 @@ def as_matplotlib(rgb: tuple[int, int, int]) -> tuple[float, float, float]:
     return tuple(c / 255 for c in rgb)
 
 
-def legend_markdown(methods: list[str]) -> str:
-    """The legend of the scene views, as a text document."""
+def legend_markdown(methods: list[str], tasks: list[str] | None = None) -> str:
+    """The legend of the scene views and the curves (which draw none of their own), as a text
+    document."""
     rows = [f"- **{m}**: {colour_name(i)}" for i, m in enumerate(methods)]
+    order = f" ({', '.join(tasks)})" if tasks else ""
     return (
         "## Legend\n\nObserved history: grey. True future: green. Predictions, one colour per "
         "method (the thin pale lines are the K samples, the thick one the best of K; the "
-        "truth is drawn above them). Curves: one shade of its method's colour per task, from "
-        "dark (the first task) to light (the last):\n\n" + "\n".join(rows) + "\n"
+        "truth is drawn above them). The grey bar in each scene is its scale in metres. "
+        f"Curves: one shade of its method's colour per task, from dark (the first task) to "
+        f"light (the last){order}; hover over a curve for its name:\n\n" + "\n".join(rows) + "\n"
     )

@@ -16,6 +16,7 @@ Draw order puts the truth above the best of K and both above the pale, thin K sa
 
 from __future__ import annotations
 
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -33,11 +34,13 @@ from viz.loggers import diagnostic_scalars
 
 Colour = tuple[int, int, int]
 Bounds = tuple[float, float, float, float]  # x_min, x_max, y_min, y_max
-SAMPLES, BEST, TRUTH = 10.0, 20.0, 30.0  # draw orders: higher is drawn above
+SAMPLES, BEST, TRUTH, SCALE = 10.0, 20.0, 30.0, 40.0  # draw orders: higher is drawn above
 THIN = rr.Radius.ui_points(1.0)  # a sample line, whatever the scene's size
-# the curves' legend where they rarely run: the first task's curve starts low and later tasks'
-# start to its right and higher
-CORNER = rrb.PlotLegend(corner=rrb.Corner2D.LeftTop)
+SCALE_COLOUR = (110, 110, 110)  # a mid grey, read on the viewer's light and dark backgrounds
+# no legend drawn inside the plots: with a curve per task and method it covers the curves
+# wherever it sits; the legend document beside them names the colours and shades instead
+NO_LEGEND = rrb.PlotLegend(visible=False)
+SCENE_COLUMNS = 3  # the scenes and the rollout in a grid of near-square panels
 
 
 def curve_views(methods: list[str]) -> list[tuple[str, list[str]]]:
@@ -59,7 +62,7 @@ def framed(origin: str, name: str, bounds: dict[str, Bounds]) -> rrb.Spatial2DVi
     return rrb.Spatial2DView(origin=origin, name=name, visual_bounds=visual)
 
 
-def extent(points: np.ndarray, margin: float = 0.15) -> Bounds:
+def extent(points: np.ndarray, margin: float = 0.08) -> Bounds:
     """The bounds of ``points`` (..., 2; NaN ignored), square, with ``margin`` of their size on
     every side (at least 1 m across)."""
     flat = points.reshape(-1, 2)
@@ -71,20 +74,31 @@ def extent(points: np.ndarray, margin: float = 0.15) -> Bounds:
     return (centre[0] - half, centre[0] + half, centre[1] - half, centre[1] + half)
 
 
+def scale_bar(box: Bounds) -> tuple[float, np.ndarray]:
+    """A scale bar for a view of ``box``: a round length (1, 2 or 5 times a power of ten
+    metres) of at most a quarter of its width, as a polyline with end ticks in its top-left
+    corner (the viewer draws y downward), inside the margin ``extent`` leaves."""
+    width = box[1] - box[0]
+    power = 10 ** math.floor(math.log10(width / 4))
+    length = max(m * power for m in (1, 2, 5) if m * power <= width / 4)
+    x0, y0, tick = box[0] + 0.03 * width, box[2] + 0.03 * width, 0.012 * width
+    corners = [(x0, y0 + tick), (x0, y0), (x0 + length, y0), (x0 + length, y0 + tick)]
+    return length, np.array(corners)
+
+
 def default_blueprint(
     tasks: list[str], methods: list[str], scenes: int, bounds: dict[str, Bounds] | None = None
 ) -> rrb.Blueprint:
-    """Per task a tab: its sample scenes in a grid beside its rollout, as large, each framed on
-    its ``bounds`` (origin -> extent); beside them the curves and diagnostics, then the legend
-    and the run card. The viewer opens on the ``epoch`` timeline, where the curves live and
-    every view shows the latest predictions."""
+    """Per task a tab: its sample scenes and its rollout in a grid of near-square panels, each
+    framed on its ``bounds`` (origin -> extent), so a scene fills its panel; beside them the
+    curves and diagnostics, then the legend and the run card. The viewer opens on the
+    ``epoch`` timeline, where the curves live and every view shows the latest predictions."""
     bounds = bounds or {}
     tabs = [
-        rrb.Horizontal(
-            rrb.Grid(
-                *(framed(f"/tasks/{task}/scenes/{k}", f"scene {k}", bounds) for k in range(scenes))
-            ),
+        rrb.Grid(
+            *(framed(f"/tasks/{task}/scenes/{k}", f"scene {k}", bounds) for k in range(scenes)),
             framed(f"/rollouts/{task}", "rollout", bounds),
+            grid_columns=min(SCENE_COLUMNS, scenes + 1),
             name=task,
         )
         for task in tasks
@@ -96,7 +110,9 @@ def default_blueprint(
             rrb.Vertical(
                 rrb.Tabs(
                     *(
-                        rrb.TimeSeriesView(origin="/curves", contents=c, name=n, plot_legend=CORNER)
+                        rrb.TimeSeriesView(
+                            origin="/curves", contents=c, name=n, plot_legend=NO_LEGEND
+                        )
                         for n, c in curves
                     ),
                     rrb.TimeSeriesView(origin="/diagnostics", name="diagnostics after each task"),
@@ -175,12 +191,29 @@ class RunRecorder:
             self.rec.set_time(timeline, sequence=value)
 
     # --- static context -------------------------------------------------------------------
-    def log_legend(self, methods: list[str]) -> None:
+    def log_legend(self, methods: list[str], tasks: list[str] | None = None) -> None:
         self.rec.log(
             "legend",
-            rr.TextDocument(legend_markdown(methods), media_type=rr.MediaType.MARKDOWN),
+            rr.TextDocument(legend_markdown(methods, tasks), media_type=rr.MediaType.MARKDOWN),
             static=True,
         )
+
+    def log_scale_bars(self, bounds: dict[str, Bounds]) -> None:
+        """A metric scale bar in every framed view (origin -> its bounds), labelled in metres."""
+        for origin, box in bounds.items():
+            length, corners = scale_bar(box)
+            self.rec.log(
+                f"{origin.strip('/')}/scale",
+                rr.LineStrips2D(
+                    [corners],
+                    colors=SCALE_COLOUR,
+                    radii=rr.Radius.ui_points(2.0),
+                    labels=f"{length:g} m",
+                    show_labels=True,
+                    draw_order=SCALE,
+                ),
+                static=True,
+            )
 
     def log_run_card(self, markdown: str) -> None:
         self.rec.log(

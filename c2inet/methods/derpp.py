@@ -46,7 +46,7 @@ class DERPP(Method):
 
     name = "derpp"
     # down to 0.001: tuned at batch 64 alpha chose 0.025, near the old floor of 0.01
-    search_space = {"alpha": Tunable(1e-3, 3.0, log=True), "beta": Tunable(1e-3, 3.0, log=True)}
+    search_space = {"alpha": Tunable(1e-3, 10.0, log=True), "beta": Tunable(1e-3, 10.0, log=True)}
     Options = DERPPOptions
     inert = {"alpha": 0.0, "beta": 0.0}
 

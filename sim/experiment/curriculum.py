@@ -28,7 +28,7 @@ from sim.scenario import DomainSpec, parse_scenario
 from viz.observer import Showcase
 
 QUICK_WINDOWS = 24  # at most this many windows per split in --quick runs (real data)
-SAMPLE_SCENES = 4  # test scenes per task drawn in the recording
+SAMPLE_SCENES = 5  # test scenes per task drawn in the recording (with the rollout, a 3 x 2 grid)
 ROLLOUT_FRAMES = 50  # frames of the longer episode played per domain (20 s at 0.4 s)
 
 

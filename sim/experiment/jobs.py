@@ -262,19 +262,16 @@ def follow(bar) -> Callable[[str, dict], None]:
 def record_truth(config: ExperimentConfig, curriculum: Curriculum, path: Path, live: str | None):
     """The run's own recording: the blueprint, the domains and the ground truth."""
     tasks = [t.name for t in curriculum.inputs.tasks]
+    bounds = framing(curriculum.inputs.showcases, curriculum.rollouts)
     recorder = RunRecorder.create(
         APP_ID,
         recording_id(config),
         path,
         live,
-        default_blueprint(
-            tasks,
-            list(config.methods),
-            SAMPLE_SCENES,
-            framing(curriculum.inputs.showcases, curriculum.rollouts),
-        ),
+        default_blueprint(tasks, list(config.methods), SAMPLE_SCENES, bounds),
     )
-    recorder.log_legend(list(config.methods))
+    recorder.log_legend(list(config.methods), tasks)
+    recorder.log_scale_bars(bounds)
     for domain in curriculum.domains:
         recorder.log_domain(domain.name, domain.knobs, domain.stats)
     log_truth(recorder, curriculum.inputs.showcases, curriculum.rollouts)

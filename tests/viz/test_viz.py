@@ -14,12 +14,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import rerun.blueprint as rrb
 from rerun.chunk import RrdReader
 
+from sim.experiment.curriculum import SAMPLE_SCENES
 from sim.run import main
 from viz.colours import faint, method_colour, task_shade
-from viz.recording import curve_views, extent
+from viz.recording import curve_views, extent, scale_bar
 from viz.serve import command, free_port, launch, stop, wait_for_port
 
 RERUN = str(Path(sys.executable).with_name("rerun"))
@@ -61,7 +61,7 @@ def test_recording_holds_scenes_rollouts_curves_and_queue(recorded):
     rows = rows_per_entity(recorded / "recording.rrd")
     for task in TASKS:
         assert rows[f"/tasks/{task}"] == 1  # knobs and statistics as properties
-        for k in range(4):
+        for k in range(SAMPLE_SCENES):
             scene = f"/tasks/{task}/scenes/{k}"
             assert rows[f"{scene}/truth/agents"] == 20  # one batched row per frame
             assert rows[f"{scene}/truth/history"] == 1 and rows[f"{scene}/truth/future"] == 1
@@ -176,17 +176,40 @@ def test_every_scene_and_rollout_view_opens_framed_on_its_truth(recorded):
         for c in reader.stream(store=reader.blueprints()[0])
         if c.entity_path.endswith("/VisualBounds2D")
     ]
-    assert len(views) == len(TASKS) * 5  # four sample scenes and a rollout per task
-    corners = [
-        c.to_record_batch().column("PlotLegend:corner").to_pylist()[0][0]
-        for c in reader.stream(store=reader.blueprints()[0])
+    assert len(views) == len(TASKS) * (SAMPLE_SCENES + 1)  # the sample scenes and a rollout
+    blueprint = list(reader.stream(store=reader.blueprints()[0]))
+    legends = [
+        c.to_record_batch().column("PlotLegend:visible").to_pylist()[0][0]
+        for c in blueprint
         if c.entity_path.endswith("/PlotLegend")
     ]
-    assert corners == [rrb.Corner2D.LeftTop.value] * len(curve_views(["m"]))  # off the curves
+    assert legends == [False] * len(curve_views(["m"]))  # none drawn over the curves
+    columns = [
+        c.to_record_batch().column("ContainerBlueprint:grid_columns").to_pylist()[0][0]
+        for c in blueprint
+        if "ContainerBlueprint:grid_columns" in c.to_record_batch().schema.names
+    ]
+    assert columns.count(3) == len(TASKS)  # each task's six panels in a 3 x 2 grid
     points = np.array([[0.0, 0.0], [4.0, 1.0], [np.nan, np.nan]])
     x0, x1, y0, y1 = extent(points, margin=0.25)
     assert (x0, x1) == (-1.0, 5.0) and (y0, y1) == (-2.5, 3.5)  # square, 0.25 of 4 m a side
     assert extent(np.full((3, 2), np.nan)) == (-1.0, 1.0, -1.0, 1.0)  # nothing to frame
+
+
+def test_every_framed_view_has_a_scale_bar_in_metres(recorded):
+    path = recorded / "recording.rrd"
+    origins = [f"/tasks/{t}/scenes/{k}" for t in TASKS for k in range(SAMPLE_SCENES)]
+    for origin in origins + [f"/rollouts/{t}" for t in TASKS]:
+        (bar,) = chunks_of(path, f"{origin}/scale")
+        batch = bar.to_record_batch()
+        (label,) = batch.column("LineStrips2D:labels")[0].as_py()
+        (strip,) = batch.column("LineStrips2D:strips")[0].as_py()
+        length = float(label.removesuffix(" m"))
+        assert bar.is_static and abs(strip[2][0] - strip[1][0] - length) < 1e-5
+    length, corners = scale_bar((0.0, 7.0, -1.0, 6.0))
+    assert length == 1.0 and corners[2, 0] - corners[1, 0] == 1.0  # round, under a quarter
+    assert scale_bar((0.0, 30.0, 0.0, 30.0))[0] == 5.0
+    assert scale_bar((0.0, 0.5, 0.0, 0.5))[0] == 0.1
 
 
 def test_recording_verifies_and_stays_small(recorded, env):
