@@ -8,6 +8,8 @@ distance, so no error; the evaluation never rotates.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from c2inet.data import Windows
@@ -31,4 +33,4 @@ def augment_scenes(windows: Windows, rng: np.random.Generator, kind: str) -> Win
     y = windows.positions[..., 1]
     cos, sin = np.round(np.cos(angles), 12), np.round(np.sin(angles), 12)
     turned = np.stack([cos * x - sin * y, sin * x + cos * y], axis=-1)
-    return Windows(turned.astype(windows.positions.dtype), windows.scene_start, windows.obs_len)
+    return replace(windows, positions=turned.astype(windows.positions.dtype))

@@ -85,7 +85,7 @@ def evaluate(
                 model, windows, point_draws, seed + POINT_SEED, batch_scenes, **options
             )
         point = draws.mean(axis=0)
-    return evaluate_predictions(pred, truth, windows.scene_start, point)
+    return evaluate_predictions(pred, truth, windows.scene_start, point, windows.contact)
 
 
 def evaluate_all(

@@ -47,11 +47,17 @@ def best_of_k(errors: np.ndarray, scene_start: np.ndarray, mode: str) -> np.ndar
 
 
 def evaluate_predictions(
-    pred: np.ndarray, truth: np.ndarray, scene_start: np.ndarray, point: np.ndarray | None = None
+    pred: np.ndarray,
+    truth: np.ndarray,
+    scene_start: np.ndarray,
+    point: np.ndarray | None = None,
+    contact: float | None = None,
 ) -> dict[str, float]:
     """ADE/FDE in metres: best of K, joint and per agent; ``ade_draw``, one random draw (the
-    first sample); ``ade_k1``, the point prediction ``point`` (T, N, 2), when given; and the
-    spread of the K endpoints (mean distance of each agent's K final points to their mean)."""
+    first sample); ``ade_k1``, the point prediction ``point`` (T, N, 2), when given, with its
+    collision rates (TrajNet++'s, and at the bodies' own ``contact`` distance where the data
+    knows it: ``col_pred_body``, ``col_truth_body``, all agents); and the spread of the K
+    endpoints (mean distance of each agent's K final points to their mean)."""
     ade, fde = displacement_errors(pred, truth)
     final = pred[:, -1]  # (K, N, 2)
     spread = np.linalg.norm(final - final.mean(axis=0), axis=-1).mean()
@@ -68,6 +74,9 @@ def evaluate_predictions(
         point_ade, point_fde = displacement_errors(point[None], truth)
         scores |= {"ade_k1": float(point_ade.mean()), "fde_k1": float(point_fde.mean())}
         scores |= collisions(point, truth, scene_start)
+        if contact is not None:
+            body = collisions(point, truth, scene_start, contact)
+            scores |= {"col_pred_body": body["col_pred"], "col_truth_body": body["col_truth"]}
     return scores
 
 
@@ -79,13 +88,18 @@ def _densified(paths: np.ndarray) -> np.ndarray:
     return np.concatenate([between.transpose(1, 0, 2, 3).reshape(-1, *paths.shape[1:]), paths[-1:]])
 
 
-def collisions(point: np.ndarray, truth: np.ndarray, scene_start: np.ndarray) -> dict[str, float]:
+def collisions(
+    point: np.ndarray,
+    truth: np.ndarray,
+    scene_start: np.ndarray,
+    distance: float = COLLISION_DISTANCE,
+) -> dict[str, float]:
     """TrajNet++'s collision rates of the point prediction (T, N, 2), over the scenes with two
-    agents or more: Col-I, a predicted path within :data:`COLLISION_DISTANCE` (<=) of another
-    agent's predicted path at the same moment; Col-II, of another agent's true path. TrajNet++
-    scores each scene's primary agent (its first: ``col_pred_primary``, ``col_truth_primary``);
-    ``col_pred`` and ``col_truth`` take the share of all those scenes' agents. 0 where no scene
-    has two agents."""
+    agents or more: Col-I, a predicted path within ``distance`` (<=; TrajNet++'s 0.2 m by
+    default) of another agent's predicted path at the same moment; Col-II, of another agent's
+    true path. TrajNet++ scores each scene's primary agent (its first: ``col_pred_primary``,
+    ``col_truth_primary``); ``col_pred`` and ``col_truth`` take the share of all those scenes'
+    agents. 0 where no scene has two agents."""
     pred, true = _densified(point), _densified(truth)
     names = ("col_pred", "col_truth")
     hits: dict[str, list] = {name: [] for name in (*names, *(f"{n}_primary" for n in names))}
@@ -96,7 +110,7 @@ def collisions(point: np.ndarray, truth: np.ndarray, scene_start: np.ndarray) ->
         others = np.eye(end - first, dtype=bool)[None]  # an agent never collides with itself
         for name, theirs in zip(names, (mine, true[:, first:end]), strict=True):
             gaps = np.linalg.norm(mine[:, :, None] - theirs[:, None], axis=-1)  # (T', n, n)
-            hit = ((gaps <= COLLISION_DISTANCE) & ~others).any(axis=(0, 2))
+            hit = ((gaps <= distance) & ~others).any(axis=(0, 2))
             hits[name].append(hit)
             hits[f"{name}_primary"].append(hit[:1])
     return {

@@ -62,6 +62,7 @@ def summarise(
     suffixes = ["", *(f"_{v}" for v in out["variants"])]
     measured = ("ade", "fde", "ade_k1", "fde_k1", "ade_draw", "fde_draw")
     measured += ("col_pred", "col_truth", "col_pred_primary", "col_truth_primary")
+    measured += ("col_pred_body", "col_truth_body")
     for metric in (f"{m}{s}" for s in suffixes for m in measured if f"{m}{s}" in runs[0]):
         seen = np.array([average_seen(r[metric]) for r in runs])
         out[f"avg_seen_{metric}"] = _rounded(seen.mean(0))

@@ -139,8 +139,13 @@ def _collisions(methods: dict[str, dict[str, Any]], unit: str) -> list[str]:
     collided = [(n, m) for n, m in methods.items() if "avg_seen_col_pred" in m and unit == "m"]
     if not collided:
         return []
-    rows = [["method", "Col-I primary", "Col-II primary", "Col-I all agents", "Col-II all agents"]]
+    header = ["method", "Col-I primary", "Col-II primary", "Col-I all agents", "Col-II all agents"]
     keys = ("col_pred_primary", "col_truth_primary", "col_pred", "col_truth")
+    bodies = any("avg_seen_col_pred_body" in m for _, m in collided)
+    if bodies:
+        header += ["Col-I bodies", "Col-II bodies"]
+        keys += ("col_pred_body", "col_truth_body")
+    rows = [header]
     rows += [
         [n, *(f"{m[f'avg_seen_{k}'][-1]:.1%}" if f"avg_seen_{k}" in m else "-" for k in keys)]
         for n, m in collided
@@ -152,7 +157,14 @@ def _collisions(methods: dict[str, dict[str, Any]], unit: str) -> list[str]:
         f"{COLLISION_DISTANCE:g} m (two radii of {COLLISION_RADIUS:g} m) of a neighbour's "
         "predicted path (Col-I) or true path (Col-II), at the frames and between them; of each "
         "scene's primary agent (its first, as TrajNet++ scores) and of all agents of the scenes "
-        "with a neighbour; constant velocity, which ignores its neighbours, for comparison:",
+        "with a neighbour; constant velocity, which ignores its neighbours, for comparison"
+        + (
+            "; and, where the simulator knows its bodies' size, all agents at the bodies' own "
+            "contact distance (two radii of the domain)"
+            if bodies
+            else ""
+        )
+        + ":",
         "",
         markdown_table(rows),
     ]

@@ -10,7 +10,7 @@ import math
 import os
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -99,7 +99,11 @@ def make_tasks(
         how = "read from the cache" if cached else f"made in {time.perf_counter() - started:.1f} s"
         sizes = "/".join(str(len(domain.scenes[split])) for split in SPLITS)
         print(f"domain {i}/{len(specs)} {domain.name}: {how} ({sizes} scenes)", file=sys.stderr)
-        splits = domain_windows(domain, spec.family.windowing)
+        contact = get_generator(spec.family.generator).contact(spec.knobs)
+        splits = {
+            split: None if w is None else replace(w, contact=contact)
+            for split, w in domain_windows(domain, spec.family.windowing).items()
+        }
         if quick:
             splits = {k: _first(w, QUICK_WINDOWS) for k, w in splits.items()}
         if splits["train"] is None or splits["test"] is None:

@@ -64,6 +64,12 @@ class Generator:
         before anything runs (0: small whatever the knobs)."""
         return 0
 
+    @classmethod
+    def contact(cls, knobs: dict[str, Any]) -> float | None:
+        """Two bodies' centre distance at contact in metres, where the simulator knows it (the
+        collision rate at the bodies' own size is scored beside TrajNet++'s 0.2 m), else None."""
+        return None
+
     def rollout(self, knobs: dict[str, Any], seed: np.random.SeedSequence, frames: int):
         """One longer episode of the domain (a :class:`sim.data.Scene`) for playback, or None."""
         return None

@@ -311,6 +311,11 @@ class CrowdGenerator(Generator):
         return Scene(observed(positions, options, seed), np.arange(options.num_agents))
 
     @classmethod
+    def contact(cls, knobs: dict[str, Any]) -> float | None:
+        """Two discs touch at twice the radius."""
+        return 2 * CrowdKnobs(**knobs).radius
+
+    @classmethod
     def memory_bytes(cls, knobs: dict[str, Any], splits) -> int:
         """Positions of every scene, float64, about four times over (windows, Parquet, stats)."""
         options = CrowdKnobs(**knobs)

@@ -1,5 +1,7 @@
 """Metrics against hand-computed cases."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
@@ -127,6 +129,28 @@ def test_collisions_count_agents_whose_paths_meet_predicted_or_true():
     truth[:, 0] -= [0.0, 3.0]  # and the first 3 m the other way: no prediction meets a truth
     assert collisions(point, truth, starts)["col_truth"] == 0.0
     assert set(collisions(lone, lone, np.array([0, 1])).values()) == {0.0}
+
+
+def test_collisions_at_the_bodies_contact_distance_where_the_data_knows_it():
+    """Agents passing 0.3 m apart miss at TrajNet++'s 0.2 m and touch as discs of radius 0.2 m:
+    the windows' ``contact`` adds the bodies' rates; windows without one add none; the contact
+    survives subsets, augmentation and checkpoints, and concatenation where the parts share it."""
+    from c2inet.augment import augment_scenes
+    from c2inet.metrics import evaluate_predictions
+
+    t = np.arange(12, dtype=float)[:, None]
+    passing = np.stack([np.hstack([t, 0 * t]), np.hstack([t, 0 * t + 0.3])], axis=1)
+    starts = np.array([0, 2])
+    truth, pred = passing, passing[None]
+    plain = evaluate_predictions(pred, truth, starts, passing)
+    assert plain["col_pred"] == 0.0 and "col_pred_body" not in plain
+    body = evaluate_predictions(pred, truth, starts, passing, contact=0.4)
+    assert body["col_pred_body"] == body["col_truth_body"] == 1.0 and body["col_pred"] == 0.0
+    windows = Windows(np.zeros((4, 20, 2), np.float32), np.array([0, 2, 4]), contact=0.5)
+    turned = augment_scenes(windows, np.random.default_rng(0), "rotate")
+    assert windows.subset(np.array([1])).contact == turned.contact == 0.5
+    assert Windows.from_state(windows.state_dict()).contact == 0.5
+    assert Windows.concat([windows, replace(windows, contact=None)]).contact is None
 
 
 def test_collisions_are_trajnetpps_own_on_a_fixture():

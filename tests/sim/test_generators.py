@@ -149,3 +149,17 @@ def test_a_domain_over_the_memory_budget_is_refused_before_generating(tmp_path):
     with pytest.raises(InputError, match=r"needs about 1\d\d GB, more than the memory budget"):
         build_domain(spec, 0, tmp_path, memory_budget=12.0)
     assert not list(tmp_path.iterdir())
+
+
+def test_a_crowd_domains_windows_carry_its_bodies_contact_distance(tmp_path):
+    """The crowd's discs touch at twice their radius: its tasks' windows say so (and the
+    evaluation scores collisions at it); traffic knows no such distance."""
+    from sim.experiment.curriculum import make_tasks
+    from sim.generators import get_generator
+    from sim.scenario import parse_scenario
+
+    assert CrowdGenerator.contact({"radius": 0.25}) == 0.5
+    assert get_generator("traffic").contact({}) is None
+    specs = parse_scenario("crowd_radius_0.3")
+    tasks, _ = make_tasks(specs, 0, True, tmp_path, 1)
+    assert {tasks[0].train.contact, tasks[0].test.contact} == {0.6}
