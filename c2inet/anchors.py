@@ -38,13 +38,15 @@ class Anchors:
         return len(self.cond)
 
     def select(self, index: torch.Tensor) -> Anchors:
+        """The anchors at the host's ``index`` (copied to their device, never read back)."""
+        rows = index.to(self.cond.device)
         return Anchors(
-            self.cond[index],
-            self.last_rel[index],
-            self.future[:, index],
-            self.inputs.subset(index.cpu().numpy()),
-            self.c_mean[index],
-            self.c_logvar[index],
+            self.cond[rows],
+            self.last_rel[rows],
+            self.future[:, rows],
+            self.inputs.subset(index.numpy()),
+            self.c_mean[rows],
+            self.c_logvar[rows],
         )
 
     def state_dict(self) -> dict[str, Any]:

@@ -28,6 +28,7 @@ class Batch:
     scene_of: torch.Tensor  # (N,) scene index of every agent
     slot_of: torch.Tensor  # (N,) position of every agent inside its scene
     max_agents: int
+    bounds: tuple[int, ...]  # scene_start on the host: read without a sync from an accelerator
 
     @property
     def num_scenes(self) -> int:
@@ -100,6 +101,10 @@ class Batch:
             scene_of=torch.cat([p.scene_of + int(c) for p, c in zip(parts, counts, strict=True)]),
             slot_of=torch.cat([p.slot_of for p in parts]),
             max_agents=max(p.max_agents for p in parts),
+            bounds=(
+                0,
+                *(b + int(o) for p, o in zip(parts, offsets, strict=True) for b in p.bounds[1:]),
+            ),
         )
 
 
@@ -109,19 +114,29 @@ def make_batch(
     """The batch of the given scenes of ``windows`` (all scenes when None), on ``device``."""
     part = windows if scenes is None else windows.subset(scenes)
     positions = np.ascontiguousarray(part.positions.transpose(1, 0, 2))
-    counts = part.agents_per_scene
+    return tensor_batch(torch.as_tensor(positions, device=device), part.scene_start, part.obs_len)
+
+
+def tensor_batch(positions: torch.Tensor, scene_start: np.ndarray, obs_len: int) -> Batch:
+    """The batch of ``positions`` (frames, N, 2), already on their device, whose scenes start at
+    the host's ``scene_start``: the index tensors are made on the host and copied over, so a
+    batch of stored scenes (DER++'s replay) never reads its positions back."""
+    scene_start = np.asarray(scene_start, dtype=np.int64)
+    counts = np.diff(scene_start)
     scene_of = np.repeat(np.arange(len(counts)), counts)
-    slot_of = np.arange(len(scene_of)) - np.repeat(part.scene_start[:-1], counts)
-    positions, scene_start, scene_of, slot_of = (
-        torch.as_tensor(a, device=device) for a in (positions, part.scene_start, scene_of, slot_of)
+    slot_of = np.arange(len(scene_of)) - np.repeat(scene_start[:-1], counts)
+    device = positions.device
+    starts, scene_of, slot_of = (
+        torch.as_tensor(a, device=device) for a in (scene_start, scene_of, slot_of)
     )
     return Batch(
-        obs=positions[: part.obs_len],
-        fut=positions[part.obs_len :],
-        scene_start=scene_start,
+        obs=positions[:obs_len],
+        fut=positions[obs_len:],
+        scene_start=starts,
         scene_of=scene_of,
         slot_of=slot_of,
         max_agents=int(counts.max()),
+        bounds=tuple(int(b) for b in scene_start),
     )
 
 

@@ -274,7 +274,7 @@ class C2INetModel(Predictor):
         q = self.queue.config
         if self.anchors is None or not (q.distill_decoder or q.distill_encoder):
             return None, False, False
-        chosen = torch.randperm(len(self.anchors), device=self.anchors.cond.device)
+        chosen = torch.randperm(len(self.anchors), device="cpu")  # the host indexes the windows
         anchors = self.anchors.select(chosen[: q.anchor_batch])
         return anchors, q.distill_decoder, q.distill_encoder
 

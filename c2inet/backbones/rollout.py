@@ -132,6 +132,13 @@ def _run(h, x, weight, w_out, b_out, steps: int, residual: bool, keep: bool):
     return outs, (hx, cs, acts, tanhs)
 
 
+def walks_reached_rows(d_outs: torch.Tensor) -> bool:
+    """Whether the backward walks only the rows a loss reached (the variety loss reaches one
+    sample of every K): on the CPU; an accelerator walks every row, which costs less than
+    reading back which rows were reached."""
+    return d_outs.device.type == "cpu"
+
+
 class _Rollout(torch.autograd.Function):
     @staticmethod
     def forward(ctx, h, x, weight, w_out, b_out, steps, residual):
@@ -147,10 +154,10 @@ class _Rollout(torch.autograd.Function):
         if ctx.spent:
             raise RuntimeError("the decoder's rollout runs backward once (its buffers are reused)")
         ctx.spent = True
-        live = (d_outs != 0).any(2).any(0)  # rows some loss reached
-        if bool(live.all()):
+        live = (d_outs != 0).any(2).any(0) if walks_reached_rows(d_outs) else None
+        if live is None or bool(live.all()):
             grads = _backward(weight, w_out, d_outs, *kept, ctx.residual)
-        else:  # the variety loss reaches one sample of every K: the rest need no walk back
+        else:
             index = live.nonzero()[:, 0]
             rows = [BUFFERS.take(b, len(b), len(index), b.shape[2]) for b in kept]
             for buffer, taken in zip(kept, rows, strict=True):

@@ -18,8 +18,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from c2inet.batch import Batch, make_batch, variety_loss
-from c2inet.data import Windows
+from c2inet.batch import Batch, tensor_batch, variety_loss
 from c2inet.methods.base import Method, TaskContext
 from c2inet.model import LossOutput
 from c2inet.options import Tunable, choose, require
@@ -66,9 +65,9 @@ class DERPP(Method):
         chosen = ctx.rng.choice(len(self.scenes), count, replace=False)
         parts = [self.scenes[i] for i in chosen]
         starts = np.cumsum([0] + [len(p) for p in parts])
-        windows = Windows(torch.cat(parts).cpu().numpy(), starts, ctx.train.obs_len)
+        positions = torch.cat(parts).transpose(0, 1).to(ctx.device)  # (frames, N, 2)
         stored = torch.cat([self.outputs[i] for i in chosen], dim=1)
-        return make_batch(windows, device=ctx.device), stored
+        return tensor_batch(positions, starts, ctx.train.obs_len), stored
 
     def step_loss(self, ctx: TaskContext, batch: Batch, k_train: int) -> LossOutput:
         """The step's scenes and a replayed batch in one forward pass (:class:`Batch.concat`):
@@ -101,7 +100,7 @@ class DERPP(Method):
         drawn first and the outputs computed only when a scene is kept: once the reservoir is
         full, most steps keep none (``point`` draws no random numbers, so the run is the same)."""
         batch = ctx.batch
-        bounds = batch.scene_start.tolist()
+        bounds = batch.bounds
         kept = []  # (first agent, last agent, reservoir slot) of each scene kept, in order
         filled = len(self.scenes)
         for first, last in zip(bounds[:-1], bounds[1:], strict=True):
