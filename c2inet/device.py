@@ -8,6 +8,7 @@ names the device of the tensors it works with, which ``c2inet.checker.DeviceAudi
 from __future__ import annotations
 
 import contextlib
+import os
 import re
 from collections.abc import Iterator
 
@@ -16,6 +17,7 @@ import torch
 from c2inet.errors import InputError
 
 DEVICE_NAMES = re.compile(r"auto|cpu|cuda(:\d{1,4})?|mps")  # no GPU index beyond 9999
+WORKER_SLOT = "C2I_WORKER_SLOT"  # a local job worker's number, 0 up (sim's backends set it)
 
 
 def check_device_name(name: str) -> None:
@@ -42,6 +44,19 @@ def resolve_device(name: str) -> torch.device:
     if device.type == "mps" and not torch.backends.mps.is_available():
         raise InputError(f"device {name!r}: MPS is not available here (try auto or cpu)")
     return device
+
+
+def placed(device: torch.device, count: int | None = None) -> torch.device:
+    """Where a job trains: a CUDA device named without an index, on a machine with ``count``
+    (default: all visible) CUDA devices, is the one of the job's worker slot modulo ``count``,
+    so ``--jobs N`` spreads N jobs over N devices; any other device as named. (A Ray task sees
+    only the GPUs Ray gave it, so there ``count`` is 1 and it takes its own.)"""
+    if device.type != "cuda" or device.index is not None:
+        return device
+    count = torch.cuda.device_count() if count is None else count
+    if count <= 1:
+        return device
+    return torch.device("cuda", int(os.environ.get(WORKER_SLOT, "0")) % count)
 
 
 @contextlib.contextmanager

@@ -23,7 +23,13 @@ from c2inet.augment import AUGMENTATIONS, augment_scenes
 from c2inet.batch import Batch, batches
 from c2inet.checkpoints import CheckpointStore, load_checkpoint
 from c2inet.data import Windows
-from c2inet.device import check_device_name, cuda_rng_state, model_device, resolve_device
+from c2inet.device import (
+    check_device_name,
+    cuda_rng_state,
+    model_device,
+    placed,
+    resolve_device,
+)
 from c2inet.diagnostics import diagnose
 from c2inet.errors import InputError
 from c2inet.evaluation import evaluate, evaluate_all
@@ -126,7 +132,7 @@ def start_training(method: Method, cfg: TrainConfig):
     seed starts alike."""
     torch.manual_seed(cfg.seed)
     rng = _generator(cfg.seed, method.name)
-    with torch.device(resolve_device(cfg.device)):
+    with torch.device(placed(resolve_device(cfg.device))):
         model = method.build_model()
     optimiser = None
     if method.trains:

@@ -26,6 +26,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from c2inet.device import WORKER_SLOT
 from c2inet.errors import InputError, WorkerDied, quote
 
 BACKENDS = ("local", "ray")
@@ -73,10 +74,14 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def _start_worker(driver: int) -> None:
-    """A local worker ignores Ctrl-C (the driver stops it) and dies with the driver."""
+def _start_worker(driver: int, slots) -> None:
+    """A local worker ignores Ctrl-C (the driver stops it), dies with the driver, and takes the
+    next worker slot (which of several GPUs its jobs use: ``c2inet.device.placed``)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     _watch_driver(driver)
+    with slots.get_lock():
+        os.environ[WORKER_SLOT] = str(slots.value)
+        slots.value += 1
 
 
 def _exit_on(signum, _frame) -> None:
@@ -183,7 +188,8 @@ def _workers(processes: int) -> ProcessPoolExecutor:
         context = multiprocessing.get_context("forkserver" if forkserver else "spawn")
         if forkserver:
             context.set_forkserver_preload(PRELOAD)
-        _pool = ProcessPoolExecutor(processes, context, _start_worker, (os.getpid(),))
+        slots = context.Value("i", 0)
+        _pool = ProcessPoolExecutor(processes, context, _start_worker, (os.getpid(), slots))
     return _pool
 
 
@@ -284,7 +290,10 @@ def _run_on_ray(fn, jobs, order, shared, processes, address, options, progress, 
         ray.init(num_cpus=processes, include_dashboard=False, log_to_driver=False)
     try:
         refs = [ray.put(item) for item in shared]
-        remote = ray.remote(num_cpus=1)(fn)
+        # where the cluster has GPUs, each job a share of them (all --jobs fit at once): Ray
+        # shows a task only its own GPU, which a job on `cuda` then takes
+        gpus = ray.cluster_resources().get("GPU", 0)
+        remote = ray.remote(num_cpus=1, num_gpus=min(1.0, gpus / processes) if gpus else 0)(fn)
         pending = {remote.remote(jobs[i], *refs, **options): i for i in order}
         results: dict[int, Any] = {}
         while pending:

@@ -193,3 +193,33 @@ def test_workers_fork_from_a_server_that_imported_torch_once():
     results = run_jobs(preloaded, [0, 1], processes=2)
     assert all(loaded for loaded, _ in results)
     assert all(parent != os.getpid() for _, parent in results)
+
+
+def placement(job: int) -> tuple[int, str]:
+    """This worker's pid and the CUDA device a job of it on `cuda` takes on a 2-GPU machine."""
+    import time
+
+    import torch
+
+    from c2inet.device import placed
+
+    time.sleep(0.3)  # both workers take a job
+    return os.getpid(), str(placed(torch.device("cuda"), count=2))
+
+
+def test_jobs_on_cuda_spread_over_the_devices_by_worker_slot():
+    """Each local worker takes its own slot, so `--jobs 2 --device cuda` on two GPUs puts one
+    worker's jobs on cuda:0 and the other's on cuda:1; a named index is kept; one GPU is
+    `cuda`."""
+    import torch
+
+    from c2inet.device import placed
+    from sim.experiment.backends import run_jobs
+
+    results = run_jobs(placement, [0, 1, 2, 3], processes=2)
+    by_worker = {pid: {device for p, device in results if p == pid} for pid, _ in results}
+    assert sorted(set().union(*by_worker.values())) == ["cuda:0", "cuda:1"]
+    assert all(len(devices) == 1 for devices in by_worker.values())  # a worker keeps its GPU
+    assert placed(torch.device("cuda", 1), count=4) == torch.device("cuda", 1)
+    assert placed(torch.device("cuda"), count=1) == torch.device("cuda")
+    assert placed(torch.device("cpu"), count=4) == torch.device("cpu")
