@@ -28,6 +28,7 @@ from typing import Any
 
 from c2inet.device import WORKER_SLOT
 from c2inet.errors import InputError, WorkerDied, quote
+from sim.experiment.netns import private_network
 
 BACKENDS = ("local", "ray")
 
@@ -286,8 +287,29 @@ def _run_on_ray(fn, jobs, order, shared, processes, address, options, progress, 
         raise InputError("--backend ray: Ray is not installed (pip install '.[ray]')") from None
     if address is not None:
         ray.init(address=address, log_to_driver=False)
-    else:
-        ray.init(num_cpus=processes, include_dashboard=False, log_to_driver=False)
+        return _ray_jobs(ray, fn, jobs, order, shared, processes, options, progress, tasks_of)
+    with private_network(_needs_network(options)) as private:
+        ray.init(
+            num_cpus=processes,
+            include_dashboard=False,
+            log_to_driver=False,
+            _node_ip_address="127.0.0.1" if private else None,
+        )
+        return _ray_jobs(ray, fn, jobs, order, shared, processes, options, progress, tasks_of)
+
+
+def _needs_network(options: dict[str, Any]) -> str | None:
+    """Why a local cluster's jobs need this machine's network (a live viewer, a tracking
+    server), or None."""
+    if options.get("live"):
+        return "its jobs stream to a viewer"
+    if str(options.get("tracking") or "").startswith(("http:", "https:")):
+        return "its jobs log to a tracking server"
+    return None
+
+
+def _ray_jobs(ray, fn, jobs, order, shared, processes, options, progress, tasks_of):
+    """The jobs as Ray tasks on the cluster ``ray`` is connected to; Ray shut down after."""
     try:
         refs = [ray.put(item) for item in shared]
         # where the cluster has GPUs, each job a share of them (all --jobs fit at once): Ray

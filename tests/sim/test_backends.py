@@ -2,6 +2,7 @@
 
 import os
 import signal
+import socket
 import subprocess
 import sys
 import tempfile
@@ -223,3 +224,31 @@ def test_jobs_on_cuda_spread_over_the_devices_by_worker_slot():
     assert placed(torch.device("cuda", 1), count=4) == torch.device("cuda", 1)
     assert placed(torch.device("cuda"), count=1) == torch.device("cuda")
     assert placed(torch.device("cpu"), count=4) == torch.device("cpu")
+
+
+def namespace() -> int:
+    return os.stat("/proc/thread-self/ns/net").st_ino
+
+
+@pytest.mark.skipif(os.geteuid() != 0, reason="a network namespace needs root here")
+def test_a_local_ray_cluster_starts_in_a_network_namespace_holding_only_the_loopback():
+    """Issue 64: what starts inside ``private_network`` (Ray's servers, which bind every
+    interface) sees one interface, the loopback, up; the thread returns to its own namespace;
+    work that needs the machine's network runs outside it, with one warning."""
+    from sim.experiment import netns
+
+    before = namespace()
+    with netns.private_network() as private:
+        inside = namespace()
+        child = subprocess.run(
+            [sys.executable, "-c", "import socket; print([n for _, n in socket.if_nameindex()])"],
+            capture_output=True,
+            text=True,
+            check=True,
+        )
+        with socket.create_server(("127.0.0.1", 0)) as server:  # the loopback is up
+            socket.create_connection(server.getsockname(), timeout=2).close()
+    assert private and inside != before and namespace() == before
+    assert child.stdout.strip() == "['lo']"
+    with netns.private_network("its jobs stream to a viewer") as private:
+        assert not private and namespace() == before
