@@ -286,7 +286,7 @@ def _run_on_ray(fn, jobs, order, shared, processes, address, options, progress, 
     except ImportError:
         raise InputError("--backend ray: Ray is not installed (pip install '.[ray]')") from None
     if address is not None:
-        ray.init(address=address, log_to_driver=False)
+        _join(ray, address)
         return _ray_jobs(ray, fn, jobs, order, shared, processes, options, progress, tasks_of)
     with private_network(_needs_network(options)) as private:
         ray.init(
@@ -296,6 +296,26 @@ def _run_on_ray(fn, jobs, order, shared, processes, address, options, progress, 
             _node_ip_address="127.0.0.1" if private else None,
         )
         return _ray_jobs(ray, fn, jobs, order, shared, processes, options, progress, tasks_of)
+
+
+def _join(ray, address: str) -> None:
+    """Connect to the cluster at ``address``; a refusal (a cluster with token authentication
+    and no or another token here, or one that went away) is one line, and Ray's own retries
+    say nothing (its C++ client writes each one to standard error, which is held meanwhile)."""
+    held = os.dup(2)
+    try:
+        with open(os.devnull, "wb") as void:
+            os.dup2(void.fileno(), 2)
+            ray.init(address=address, log_to_driver=False)
+    except ConnectionError:
+        raise InputError(
+            f"--ray-address {quote(address, 40)}: the cluster there refused this driver (with "
+            "token authentication on, set RAY_AUTH_MODE=token and RAY_AUTH_TOKEN_PATH to the "
+            "cluster's token file), or it stopped"
+        ) from None
+    finally:
+        os.dup2(held, 2)
+        os.close(held)
 
 
 def _needs_network(options: dict[str, Any]) -> str | None:
