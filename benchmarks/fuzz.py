@@ -1,11 +1,12 @@
 """Fuzzing every input path at scale: counts of each outcome per target, side by side.
 
-Runs ``--cases`` generated inputs (default 10,000, spread over the targets of ``sim.fuzz``:
-scenario, --set, sim.run, sim.generate, ETH-UCY, SDD and TrajNet++ files, family files, config
-files, tuning storages, damaged run folders; a target that costs a run a case, such as a run
-folder resumed, gets its share scaled as CI scales it) and prints, per target, how many gave a
-result (``ok``), the project's one-line error (``input error``), another exception (``crash``) or
-no answer in time (``hang``), with the first input of each bad kind.
+Runs ``--cases`` generated inputs (default 10,000, spread over the targets of
+``tests/sim/fuzzing.py``: scenario, --set, sim.run, sim.generate, ETH-UCY, SDD and TrajNet++
+files, family files, config files, tuning storages, damaged run folders; a target that costs a
+run a case, such as a run folder resumed, gets its share scaled as CI scales it) and prints, per
+target, how many gave a result (``ok``), the project's one-line error (``input error``),
+another exception (``crash``) or no answer in time (``hang``), with the first input of each bad
+kind.
 
     python benchmarks/fuzz.py [--cases 10000] [--target "run folder"]
 
@@ -16,11 +17,15 @@ from __future__ import annotations
 
 import argparse
 import collections
+import sys
 import time
+from pathlib import Path
 
 from hypothesis import HealthCheck, given, settings
 
-from sim.fuzz import TARGETS, Hang, outcome
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "sim"))  # test machinery
+
+from fuzzing import TARGETS, Hang, outcome  # noqa: E402
 
 KINDS = ("ok", "input error", "crash", "hang")
 CI_EXAMPLES = 150  # what CI draws of a target that costs little a case

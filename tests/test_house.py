@@ -37,7 +37,7 @@ def test_imports_point_one_way(package):
 
 
 COMMANDS = {
-    *("sim.run", "sim.sweep", "sim.bench", "sim.generate", "sim.study", "sim.cli", "sim.fuzz"),
+    *("sim.run", "sim.sweep", "sim.bench", "sim.generate", "sim.study", "sim.cli"),
     "sim.config_file",
 }
 FLOOR_NAMES = ("the world", "the engine", "the studies", "the commands")

@@ -30,10 +30,7 @@ def distribution(requirement: str) -> str:
     return re.split(r"[<>=!~\[ ;]", requirement, maxsplit=1)[0].lower().replace("_", "-")
 
 
-EXTRA_MODULES = {  # modules that are all about an extra's package
-    "sim/fuzz.py": "hypothesis",
-    "sim/fuzz_inputs.py": "hypothesis",
-}
+EXTRA_MODULES: dict[str, str] = {}  # modules that are all about an extra's package
 
 
 def test_every_import_of_the_package_is_a_declared_dependency():

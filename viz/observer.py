@@ -10,8 +10,9 @@ import numpy as np
 from c2inet.data import Windows
 from c2inet.evaluation import sample_predictions
 from c2inet.metrics import best_sample, displacement_errors
+from viz.blueprint import extent
 from viz.loggers import epoch_step, task_step
-from viz.recording import RunRecorder, extent
+from viz.recording import RunRecorder
 
 
 @dataclass

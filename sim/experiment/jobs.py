@@ -32,10 +32,11 @@ from sim.experiment.curriculum import (
     make_showcases,
 )
 from sim.progress import progress_bar
+from viz.blueprint import default_blueprint
 from viz.colours import method_colour
 from viz.loggers import flat_params, make_loggers
 from viz.observer import RecordingObserver, framing, log_truth
-from viz.recording import RunRecorder, default_blueprint
+from viz.recording import RunRecorder
 
 APP_ID = "c2i-testbed"
 

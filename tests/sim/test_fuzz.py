@@ -1,12 +1,12 @@
-"""Fuzzing every input path (``sim.fuzz``): a result or the project's one error, nothing else.
+"""Fuzzing every input path (``fuzzing.py``): a result or the project's one error, nothing
+else.
 
 Each test draws a few hundred inputs; ``benchmarks/fuzz.py`` runs 10,000 and counts outcomes.
 """
 
 import pytest
+from fuzzing import TARGETS, Target, outcome
 from hypothesis import HealthCheck, given, settings
-
-from sim.fuzz import TARGETS, Target, outcome
 
 FUZZ = settings(
     max_examples=150, deadline=None, suppress_health_check=list(HealthCheck), derandomize=True
@@ -25,7 +25,7 @@ def test_every_input_gets_a_result_or_one_clear_error(target: Target):
 
 def test_the_fuzz_targets_reach_both_outcomes():
     """Inputs that pass and inputs that fail, so the strategies are not all rejected early."""
-    from sim.fuzz import data_file_target, scenario_target
+    from fuzzing import data_file_target, scenario_target
 
     assert outcome(TARGETS[0], "crowd_noise_0.1..0.3") == "ok"
     assert outcome(TARGETS[0], "crowd_noise_0.1-0.3") == "input error"
@@ -36,9 +36,10 @@ def test_the_fuzz_targets_reach_both_outcomes():
 def test_what_the_fuzz_suite_found_stays_fixed(tmp_path):
     """Its first finds: a benchmark's own tuning store damaged on resume was a driver's
     traceback; a run marker or a report replaced by a folder was an ``IsADirectoryError``."""
+    from fuzzing import tuning_storage_target
+
     from c2inet.errors import InputError
     from c2inet.files import write_text_atomic
-    from sim.fuzz import tuning_storage_target
 
     with pytest.raises(InputError, match=r"the tuning store .*\(delete it to tune again\)"):
         tuning_storage_target(b"SQLite format 3\x00")

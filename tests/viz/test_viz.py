@@ -18,8 +18,8 @@ from rerun.chunk import RrdReader
 
 from sim.experiment.curriculum import SAMPLE_SCENES
 from sim.run import main
+from viz.blueprint import curve_views, extent, scale_bar
 from viz.colours import faint, method_colour, task_shade
-from viz.recording import curve_views, extent, scale_bar
 from viz.serve import command, free_port, launch, stop, wait_for_port
 
 RERUN = str(Path(sys.executable).with_name("rerun"))

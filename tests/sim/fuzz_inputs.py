@@ -1,6 +1,7 @@
 """The fault suite's inputs: Hypothesis strategies for every way a user hands the project
 something (scenarios, ``--set``, command lines, data files of every format, family and config
-files, tuning stores, damages to a run folder). ``sim.fuzz`` feeds them to the project."""
+files, tuning stores, damages to a run folder). ``fuzzing.py`` feeds them to the project
+(test machinery, not shipped)."""
 
 from __future__ import annotations
 

@@ -8,7 +8,8 @@ lines (in-process, stopped before anything is generated), ETH-UCY, SDD and TrajN
 family files, ``--config`` files (TOML and a run's ``config.json``) and a benchmark's tuning
 storage.
 ``tests/sim/test_fuzz.py`` runs every target in CI; ``benchmarks/fuzz.py`` runs 10,000 cases
-and counts the outcomes. Needs ``hypothesis`` (the ``test`` extra).
+and counts the outcomes. Test machinery: it lives beside the tests, out of the package, and
+needs ``hypothesis`` (the ``test`` extra).
 """
 
 from __future__ import annotations
@@ -25,10 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from hypothesis import strategies as st
-
-from c2inet.errors import InputError
-from sim.fuzz_inputs import (
+from fuzz_inputs import (
     argvs,
     config_files,
     data_files,
@@ -40,6 +38,9 @@ from sim.fuzz_inputs import (
     trajnet_files,
     tuning_storages,
 )
+from hypothesis import strategies as st
+
+from c2inet.errors import InputError
 
 SECONDS = 10  # CPU seconds: a case computing longer counts as a hang
 WALL_SECONDS = 180  # a case blocked this long (a FIFO read, say) counts as one: generous, since
