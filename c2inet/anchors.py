@@ -5,17 +5,30 @@ the two ways to make them (pseudo-inputs decoded from the components, or stored 
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 import torch
 
-from c2inet.batch import make_batch
+from c2inet.batch import Batch, make_batch
 from c2inet.data import Windows
 from c2inet.gaussians import GaussianMixture, gaussian_sample, responsibilities
 
-if TYPE_CHECKING:
-    from c2inet.model import C2INetModel
+
+class AnchorSource(Protocol):
+    """What making anchors asks of a network (C2INet's model has it): its sizes, the past it
+    decodes from latents, its posteriors, the decoder's condition and the backbone."""
+
+    config: Any
+    backbone: Any
+
+    def reconstruct_past(self, z: torch.Tensor, c: torch.Tensor) -> torch.Tensor: ...
+
+    def posteriors(self, batch: Batch) -> Any: ...
+
+    def conditions(
+        self, batch: Batch, post: Any, z: torch.Tensor, c: torch.Tensor
+    ) -> torch.Tensor: ...
 
 
 @dataclass
@@ -71,7 +84,7 @@ class Anchors:
 
 
 @torch.no_grad()
-def make_anchors(model: C2INetModel, components: GaussianMixture, count: int) -> Anchors:
+def make_anchors(model: AnchorSource, components: GaussianMixture, count: int) -> Anchors:
     """Anchors of one task: latents from its components and what the network made of them."""
     device = components.means.device
     z, c = torch.randn(1, count, model.config.z_dim, device=device), components.sample(count)[None]
@@ -88,7 +101,7 @@ def make_anchors(model: C2INetModel, components: GaussianMixture, count: int) ->
 
 @torch.no_grad()
 def anchors_from_windows(
-    model: C2INetModel, windows: Windows, components: GaussianMixture, count: int
+    model: AnchorSource, windows: Windows, components: GaussianMixture, count: int
 ) -> Anchors:
     """Anchors at stored training windows: ``count`` agents of ``windows`` (each its own
     one-agent pseudo-scene, its observed past in metres), C drawn from the component of

@@ -58,7 +58,7 @@ class Predictor(nn.Module):
         backbone = BACKBONES[config.backbone]
         if cond_dim is None:
             cond_dim = backbone.context_dim + config.latent_dim
-        self.backbone = backbone(cond_dim, residual=config.residual)
+        self.backbone = backbone(cond_dim, residual=config.residual, kernels=config.kernels)
 
     def context(self, batch: Batch) -> torch.Tensor:
         return self.backbone.encode(batch.obs_rel / batch.scale, batch)

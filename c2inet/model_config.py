@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from c2inet.backbones import BACKBONES
+from c2inet.kernels import MODES as KERNEL_MODES
 from c2inet.options import Choice, Tunable, choose, require
 
 C_SOURCES = ("posterior", "prior", "responsible")  # the test-time rules for C
@@ -38,6 +39,9 @@ class ModelConfig:
     the recorded sweep of ``docs/c2inet-study.md``)."""
 
     backbone: str = "stgat"
+    # STGAT's kernels (c2inet.kernels): auto, compiled, tensor or cell, resolved where the
+    # network is built (auto: compiled on the CPU, tensor elsewhere) and written to the run card
+    kernels: str = "auto"
     latent_dim: int = 16  # noise size of the baselines; C2INet uses z_dim + c_dim
     z_dim: int = 8
     c_dim: int = 8
@@ -78,6 +82,7 @@ class ModelConfig:
             raise ValueError(
                 f"backbone {self.backbone!r} is unknown (known: {', '.join(BACKBONES)})"
             )
+        choose(self, "kernels", KERNEL_MODES)
         choose(self, "c_source", C_SOURCES)
         choose(self, "c_per", ("agent", "scene"))
         choose(self, "decoder_input", DECODER_INPUTS)

@@ -89,7 +89,8 @@ def _how_it_ran(run: dict[str, Any] | None, k: int) -> list[str]:
     )
     parts = [
         f"Run: {kind}; {run['epochs']} epochs per task; {seeds}; best of K = {k}; "
-        f"wall time {run['wall_seconds']:.0f} s.",
+        + (f"{run['network']}; " if run.get("network") else "")
+        + f"wall time {run['wall_seconds']:.0f} s.",
         "",
     ]
     if run.get("command"):

@@ -36,6 +36,23 @@ def test_imports_point_one_way(package):
         assert not wrong, f"{path.relative_to(ROOT)} imports {sorted(wrong)}"
 
 
+def test_the_kernels_room_has_no_arrow_up():
+    """``c2inet/kernels`` (STGAT's fast kernels) imports nothing of the learner but itself and
+    numba's cache options (``c2inet.jit``): the network uses the kernels, never the reverse, and
+    nothing in the room registers."""
+    allowed = ("c2inet.kernels", "c2inet.jit")
+    for path in sorted((ROOT / "c2inet" / "kernels").rglob("*.py")):
+        tree = ast.parse(path.read_text())
+        modules = {f"{n.module}.{a.name}" for n in ast.walk(tree)
+                   if isinstance(n, ast.ImportFrom) and n.module for a in n.names}  # fmt: skip
+        modules |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+        ours = {m for m in modules if m.split(".")[0] == "c2inet"}
+        assert all(m.startswith(allowed) for m in ours), f"{path.name} imports {sorted(ours)}"
+        calls = {getattr(n.func, "attr", getattr(n.func, "id", "")) for n in ast.walk(tree)
+                 if isinstance(n, ast.Call)}  # fmt: skip
+        assert not calls & {"register", "enrol", "add_entry"}, f"{path.name} registers"
+
+
 COMMANDS = {
     *("sim.run", "sim.sweep", "sim.bench", "sim.generate", "sim.study", "sim.cli"),
     "sim.config_file",

@@ -1,9 +1,13 @@
 """STGAT (Huang et al., ICCV 2019): trajectory LSTM, per-step graph attention, graph LSTM, decoder.
 
-In tensor operations scenes are batched with padding and masks: one attention call covers every
-scene of a batch at every observed step, with no Python loop over scenes. Compiled (the CPU in
-float32), attention runs over each scene's agents without padding
-(:mod:`~c2inet.backbones.attention`).
+The whole network is here, in plain modules: a change to it starts in this file, with
+``model.kernels = cell`` (PyTorch's own LSTMs and cell, padded attention: one attention call
+covers every scene of a batch at every observed step). The fast kernels of
+:mod:`c2inet.kernels` compute the same function of the same parameters (checkpoints load either
+way) and are chosen by that one option, resolved once when the network is built: a change that
+keeps their shapes (sizes, activations, the residual) needs nothing there; a new gate or layer
+inside the LSTMs or the attention needs its port, or runs with ``tensor`` or ``cell`` until then
+(docs/learner.md, "Changing the network").
 """
 
 from __future__ import annotations
@@ -11,12 +15,12 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from c2inet.backbones import attention
-from c2inet.backbones import rollout_kernels as kernels
+from c2inet import kernels as _kernels
 from c2inet.backbones.base import register
-from c2inet.backbones.rollout import lstm_rollout, rollout_weights
-from c2inet.backbones.sequence import run_lstm
 from c2inet.batch import Batch
+from c2inet.kernels import attention
+from c2inet.kernels.rollout import lstm_rollout, rollout_weights
+from c2inet.kernels.sequence import run_lstm
 
 
 class GraphAttention(nn.Module):
@@ -43,7 +47,7 @@ class GraphAttention(nn.Module):
 
     def over_scenes(self, x: torch.Tensor, batch: Batch) -> torch.Tensor:
         """:meth:`forward` on per-agent rows x (T, N, F), through the compiled kernels
-        (:func:`~c2inet.backbones.attention.attend`): no padding."""
+        (:func:`~c2inet.kernels.attention.attend`): no padding."""
         h = self.linear(x).unflatten(-1, (self.heads, self.out_dim))
         out = attention.attend(h, self.att_src, self.att_dst, batch.scene_start, batch.max_agents)
         return self._combine(out)
@@ -56,14 +60,14 @@ class GraphAttention(nn.Module):
 class STGATEncoder(nn.Module):
     """Encodes observed displacements into a 64-d vector per agent (32 trajectory + 32 graph).
 
-    ``compiled``: its LSTMs run through :func:`~c2inet.backbones.sequence.run_lstm` (compiled
+    ``compiled``: its LSTMs run through :func:`~c2inet.kernels.sequence.run_lstm` (compiled
     steps on the CPU in float32) and its attention through
-    :func:`~c2inet.backbones.attention.attend`, else as the modules themselves (oneDNN, padded
+    :func:`~c2inet.kernels.attention.attend`, else as the modules themselves (oneDNN, padded
     attention); the same function.
     """
 
     def __init__(
-        self, traj_hidden=32, graph_hidden=32, gat_hidden=16, gat_out=32, heads=4, compiled=True
+        self, traj_hidden=32, graph_hidden=32, gat_hidden=16, gat_out=32, heads=4, compiled=False
     ):
         super().__init__()
         self.compiled = compiled
@@ -82,7 +86,7 @@ class STGATEncoder(nn.Module):
         """The two graph attention layers' output per agent (T, N, 32): compiled over each
         scene's agents, else padded to the batch's widest scene (tensor operations)."""
         elu = nn.functional.elu
-        if self.compiled and kernels.compiled(traj):
+        if self.compiled:
             return self.gat2.over_scenes(elu(self.gat1.over_scenes(traj, batch)), batch)
         padded, mask = batch.pad(traj)
         return batch.unpad(self.gat2(elu(self.gat1(padded, mask)), mask))
@@ -97,17 +101,18 @@ class Decoder(nn.Module):
     Everything the decoder knows of the past comes through ``cond`` (its initial state) and the
     last observed displacement (its first input). With ``residual`` each step outputs the change
     of displacement, so an untrained decoder already extrapolates at constant velocity.
-    ``kernel``: ``"rollout"`` runs the twelve steps as one autograd node
-    (:func:`~c2inet.backbones.rollout.lstm_rollout`), ``"cell"`` step by step through
-    :class:`torch.nn.LSTMCell`; the same parameters and function, rounded differently.
+    ``kernel`` (``model.kernels`` resolved): ``"cell"`` steps through
+    :class:`torch.nn.LSTMCell`; ``"tensor"`` and ``"compiled"`` run the twelve steps as one
+    autograd node (:func:`~c2inet.kernels.rollout.lstm_rollout`), its cell in tensor operations
+    or compiled; the same parameters and function, rounded differently.
     """
 
     def __init__(
-        self, cond_dim: int, hidden=64, embed=16, pred_len=12, residual=False, kernel="rollout"
+        self, cond_dim: int, hidden=64, embed=16, pred_len=12, residual=False, kernel="cell"
     ):
         super().__init__()
-        if kernel not in ("rollout", "cell"):
-            raise ValueError(f"decoder kernel {kernel!r}: expected 'rollout' or 'cell'")
+        if kernel not in ("compiled", "tensor", "cell"):
+            raise ValueError(f"decoder kernel {kernel!r}: expected compiled, tensor or cell")
         self.pred_len, self.residual, self.kernel = pred_len, residual, kernel
         self.init = nn.Sequential(nn.Linear(cond_dim, hidden), nn.Tanh())
         self.embed = nn.Linear(2, embed)
@@ -122,10 +127,11 @@ class Decoder(nn.Module):
         samples, agents = cond.shape[:2]
         h = self.init(cond).flatten(0, 1)
         step = last_rel.expand(samples, agents, 2).flatten(0, 1)
-        if self.kernel == "rollout":
+        if self.kernel != "cell":
             weight, out = rollout_weights(self.embed, self.cell), self.out
+            fused = self.kernel == "compiled"
             outputs = lstm_rollout(
-                h, step, weight, out.weight, out.bias, self.pred_len, self.residual
+                h, step, weight, out.weight, out.bias, self.pred_len, self.residual, fused
             )
             return outputs.unflatten(1, (samples, agents))
         c = torch.zeros_like(h)
@@ -143,17 +149,25 @@ class STGAT(nn.Module):
 
     ``cond_dim`` is the size of what the decoder is conditioned on: the caller decides whether
     that is the encoder's context with noise (the baselines) or latents alone (C2INet).
+    ``kernels`` (``model.kernels``, :data:`c2inet.kernels.MODES`) is resolved for the device the
+    network is built on and kept as :attr:`kernels`.
     """
 
     context_dim = 64  # the encoder's output: 32 trajectory + 32 graph
-    compiled = True  # the rollout and compiled LSTM steps; False: tensor operations throughout
 
-    def __init__(self, cond_dim: int, pred_len: int = 12, residual: bool = False):
+    def __init__(
+        self, cond_dim: int, pred_len: int = 12, residual: bool = False, kernels: str = "auto"
+    ):
         super().__init__()
-        self.encoder = STGATEncoder(compiled=self.compiled)
-        kernel = "rollout" if self.compiled else "cell"
-        self.decoder = Decoder(cond_dim, pred_len=pred_len, residual=residual, kernel=kernel)
+        self.kernels = self.kernels_for(kernels, torch.get_default_device())
+        self.encoder = STGATEncoder(compiled=self.kernels == "compiled")
+        self.decoder = Decoder(cond_dim, pred_len=pred_len, residual=residual, kernel=self.kernels)
         assert self.encoder.out_dim == self.context_dim
+
+    @classmethod
+    def kernels_for(cls, setting: str, device: torch.device | str) -> str:
+        """The kernels a network of this class built on ``device`` runs for ``setting``."""
+        return _kernels.resolve(setting, device)
 
     def encode(self, obs_rel: torch.Tensor, batch: Batch) -> torch.Tensor:
         return self.encoder(obs_rel, batch)
@@ -164,9 +178,10 @@ class STGAT(nn.Module):
 
 @register("stgat-cell")
 class STGATCell(STGAT):
-    """STGAT in tensor operations, as before the rollout and the compiled encoder: its decoder
-    stepped through :class:`torch.nn.LSTMCell`, its encoder's LSTMs PyTorch's own. The same
-    parameters (checkpoints load either way), slower to train; the reference the compiled
-    backbone is tested and timed against."""
+    """``stgat`` with ``model.kernels = cell`` whatever the setting (the name earlier boards and
+    studies ran under): the reference the kernels are tested and timed against."""
 
-    compiled = False
+    @classmethod
+    def kernels_for(cls, setting: str, device: torch.device | str) -> str:
+        _kernels.resolve(setting, device)  # a bad setting is still one
+        return "cell"

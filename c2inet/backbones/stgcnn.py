@@ -86,10 +86,18 @@ class STGCNN(nn.Module):
 
     context_dim = 64
 
-    def __init__(self, cond_dim: int, pred_len: int = 12, residual: bool = False):
+    def __init__(
+        self, cond_dim: int, pred_len: int = 12, residual: bool = False, kernels: str = "auto"
+    ):
         super().__init__()
+        self.kernels = self.kernels_for(kernels, "cpu")
         self.encoder = STGCNNEncoder(out_dim=self.context_dim)
         self.decoder = TXPDecoder(cond_dim, pred_len, residual=residual)
+
+    @classmethod
+    def kernels_for(cls, setting: str, device) -> str:
+        """No kernels of its own: every setting runs its tensor operations."""
+        return "tensor"
 
     def encode(self, obs_rel: torch.Tensor, batch: Batch) -> torch.Tensor:
         return self.encoder(obs_rel, batch)

@@ -74,13 +74,13 @@ class ExperimentConfig:
             raise InputError(f"methods: a method is named twice in {','.join(self.methods)}")
         for name in self.methods:
             get_method(name)  # an unknown one: UnknownName, an InputError naming the known ones
-        resolve_device(self.device)  # a device this machine lacks fails before any work
-        BACKBONE_REGISTRY.get(self.backbone)  # an unknown one: one line naming the known ones
+        self._check_network()
         for scope in self.settings:
             if scope not in (*SHARED_SCOPES, *self.methods):
                 raise InputError(
                     f"--set: scope {scope!r} is not data, model, train or a chosen method"
                 )
+
         for scope, key in FLAG_OPTIONS:
             if key in self.settings.get(scope, {}):
                 raise InputError(f"--set {scope}.{key}: use --{key} (its flag) instead")
@@ -100,6 +100,17 @@ class ExperimentConfig:
                 self.method(name)
         except ValueError as error:
             raise InputError(f"--set {error}") from None
+
+    def _check_network(self) -> None:
+        """The device, the backbone and its kernels, before any work: a device this machine
+        lacks, an unknown backbone (one line naming the known ones), compiled kernels on a GPU."""
+        device = resolve_device(self.device)
+        backbone = BACKBONE_REGISTRY.get(self.backbone)
+        if hasattr(backbone, "kernels_for"):
+            try:
+                backbone.kernels_for(self.settings.get("model", {}).get("kernels", "auto"), device)
+            except ValueError as error:
+                raise InputError(f"--set {error}") from None
 
     @cached_property
     def specs(self) -> list[DomainSpec]:

@@ -4,9 +4,10 @@ within float32 rounding, forwards and back; the reference backbone never takes i
 import numpy as np
 import torch
 
-from c2inet.backbones import BACKBONES, attention
+from c2inet.backbones import BACKBONES
 from c2inet.batch import Batch, make_batch
 from c2inet.data import Windows
+from c2inet.kernels import attention
 
 from toys import toy_windows
 

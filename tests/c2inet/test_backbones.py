@@ -100,3 +100,35 @@ def test_every_method_trains_on_every_backbone(name):
         if method.trains:
             model.loss(batch, 2).loss.backward()
         assert model.predict(batch, 2).shape == (2, 12, len(batch.scene_of), 2)
+
+
+def test_one_option_says_which_kernels_run_resolved_once_for_the_device():
+    """``model.kernels``: auto is compiled on the CPU and tensor on a GPU; compiled on a GPU and
+    an unknown name are refused; stgat-cell is always the cell; a compiled network moved off
+    float32 refuses rather than sniffing another path."""
+    from c2inet import kernels
+    from c2inet.model_config import ModelConfig
+
+    assert (
+        kernels.resolve("auto", "cpu") == "compiled" and kernels.resolve("auto", "cuda") == "tensor"
+    )
+    assert [kernels.resolve(m, "cpu") for m in ("compiled", "tensor", "cell")] == [
+        "compiled",
+        "tensor",
+        "cell",
+    ]
+    with pytest.raises(ValueError, match="runs on the CPU, not on cuda"):
+        kernels.resolve("compiled", "cuda")
+    with pytest.raises(ValueError, match="expected one of auto, compiled, tensor, cell"):
+        ModelConfig(kernels="fast")
+    assert BACKBONES["stgat-cell"].kernels_for("auto", "cpu") == "cell"
+    network = BACKBONES["stgat"](cond_dim=8)
+    assert network.kernels == "compiled" and network.encoder.compiled
+    assert network.decoder.kernel == "compiled"
+    plain = BACKBONES["stgat"](cond_dim=8, kernels="tensor")
+    assert not plain.encoder.compiled and plain.decoder.kernel == "tensor"
+    network.double()
+    with pytest.raises(ValueError, match="float32 CPU tensors"):
+        network.decode(
+            torch.zeros(1, 3, 8, dtype=torch.float64), torch.zeros(3, 2, dtype=torch.float64)
+        )

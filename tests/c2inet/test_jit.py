@@ -37,7 +37,7 @@ def test_a_damaged_cache_is_rebuilt_with_one_note(tmp_path):
     env = {**base_env(tmp_path), "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
     first = step(env)
     assert first.returncode == 0, first.stderr
-    (kernels,) = (tmp_path / "numba").glob("backbones_*")
+    (kernels,) = (tmp_path / "numba").glob("kernels_*")
     index, *_ = sorted(kernels.glob("*.nbi"))
     index.write_bytes(index.read_bytes()[:7])  # truncated
     data = sorted(kernels.glob("*.nbc"))

@@ -6,10 +6,10 @@ buffers never shared by two live rollouts."""
 import pytest
 import torch
 
-from c2inet.backbones import BACKBONES, rollout
-from c2inet.backbones import rollout_kernels as kernels
-from c2inet.backbones.rollout import BUFFERS
+from c2inet.backbones import BACKBONES
 from c2inet.backbones.stgat import Decoder
+from c2inet.kernels import rollout
+from c2inet.kernels.rollout import BUFFERS
 
 
 def decoders(residual: bool, dtype=torch.float64) -> tuple[Decoder, torch.Tensor, torch.Tensor]:
@@ -32,7 +32,7 @@ def outputs_and_gradients(decoder, kernel, cond, last_rel, calls=1):
 @pytest.mark.parametrize("residual", [True, False])
 def test_the_rollout_is_the_lstm_cell_with_the_same_gradients(residual):
     decoder, cond, last_rel = decoders(residual)
-    out, grads = outputs_and_gradients(decoder, "rollout", cond, last_rel)
+    out, grads = outputs_and_gradients(decoder, "tensor", cond, last_rel)
     ref, ref_grads = outputs_and_gradients(decoder, "cell", cond, last_rel)
     torch.testing.assert_close(out, ref, rtol=1e-12, atol=1e-12)
     assert len(grads) == 2 + len(list(decoder.parameters()))
@@ -45,7 +45,7 @@ def test_the_rollout_is_the_lstm_cell_with_the_same_gradients(residual):
 
 def test_in_float32_the_compiled_backward_stays_within_rounding_of_the_cell():
     decoder, cond, last_rel = decoders(True, torch.float32)
-    out, grads = outputs_and_gradients(decoder, "rollout", cond, last_rel)
+    out, grads = outputs_and_gradients(decoder, "compiled", cond, last_rel)
     ref, ref_grads = outputs_and_gradients(decoder, "cell", cond, last_rel)
     torch.testing.assert_close(out, ref, rtol=1e-5, atol=1e-5)
     for grad, expected in zip(grads, ref_grads, strict=True):
@@ -55,12 +55,12 @@ def test_in_float32_the_compiled_backward_stays_within_rounding_of_the_cell():
 def test_rollouts_alive_at_once_keep_their_own_buffers_and_a_finished_one_is_reused():
     decoder, cond, last_rel = decoders(True, torch.float32)
     # three forward passes before one backward (a method decoding twice in a step)
-    _, grads = outputs_and_gradients(decoder, "rollout", cond, last_rel, calls=3)
+    _, grads = outputs_and_gradients(decoder, "compiled", cond, last_rel, calls=3)
     _, ref_grads = outputs_and_gradients(decoder, "cell", cond, last_rel, calls=3)
     for grad, expected in zip(grads, ref_grads, strict=True):
         assert (grad - expected).abs().max() <= 1e-5 * expected.abs().max()
     kept = {b.data_ptr() for b in BUFFERS.free}
-    decoder.kernel = "rollout"
+    decoder.kernel = "compiled"
     decoder(cond, last_rel).sum().backward()  # a step: takes buffers and gives them back
     assert kept and {b.data_ptr() for b in BUFFERS.free} <= kept
 
@@ -68,16 +68,24 @@ def test_rollouts_alive_at_once_keep_their_own_buffers_and_a_finished_one_is_reu
 def test_stgat_decodes_through_the_rollout_and_stgat_cell_through_the_cell():
     cond, last_rel = torch.randn(2, 5, 8, requires_grad=True), torch.randn(5, 2)
     nodes = {}
-    for name in ("stgat", "stgat-cell"):
-        out = BACKBONES[name](cond_dim=8).decode(cond, last_rel)
-        nodes[name] = type(out.grad_fn.next_functions[0][0]).__name__  # under the unflatten
-    assert nodes == {"stgat": "_RolloutBackward", "stgat-cell": "StackBackward0"}
+    for name, kernels in (("stgat", "auto"), ("stgat", "tensor"), ("stgat", "cell")):
+        backbone = BACKBONES[name](cond_dim=8, kernels=kernels)
+        out = backbone.decode(cond, last_rel)
+        nodes[kernels] = type(out.grad_fn.next_functions[0][0]).__name__  # under the unflatten
+    assert nodes == {
+        "auto": "_RolloutBackward",
+        "tensor": "_RolloutBackward",
+        "cell": "StackBackward0",
+    }
+    assert BACKBONES["stgat"](cond_dim=8).kernels == "compiled"  # auto, on the CPU
+    assert BACKBONES["stgat-cell"](cond_dim=8, kernels="compiled").kernels == "cell"
 
 
 def test_a_second_backward_through_one_rollout_is_refused():
     """Its activations become their gradients in the backward (and its buffers go back to be
     reused), so a retained graph cannot be walked twice: that is an error, not wrong numbers."""
     decoder, cond, last_rel = decoders(True, torch.float32)
+    decoder.kernel = "compiled"
     out = decoder(cond, last_rel).sum()
     out.backward(retain_graph=True)
     with pytest.raises(RuntimeError, match="backward once"):
@@ -101,7 +109,7 @@ def test_the_variety_losss_unreached_samples_are_not_walked_back(monkeypatch):
         loss = per_sample.min(0).values.sum()  # one sample per agent
         return torch.autograd.grad(loss, [cond, last_rel, *decoder.parameters()])
 
-    grads, ref_grads = best_of_k("rollout"), best_of_k("cell")
+    grads, ref_grads = best_of_k("tensor"), best_of_k("cell")
     assert walked == [7]  # of 21 rows
     for grad, expected in zip(grads, ref_grads, strict=True):
         torch.testing.assert_close(grad, expected, rtol=1e-10, atol=1e-12)
@@ -111,11 +119,10 @@ def test_the_variety_losss_unreached_samples_are_not_walked_back(monkeypatch):
 @pytest.mark.parametrize("residual", [True, False])
 def test_the_compiled_steps_are_the_tensor_steps_within_float32_rounding(residual, monkeypatch):
     decoder, cond, last_rel = decoders(residual, torch.float32)
-    out, grads = outputs_and_gradients(decoder, "rollout", cond, last_rel)
+    out, grads = outputs_and_gradients(decoder, "compiled", cond, last_rel)
     with torch.no_grad():  # the lean loop, compiled too
         lean = decoder(cond, last_rel)
-    monkeypatch.setattr(kernels, "COMPILED", False)
-    ref, ref_grads = outputs_and_gradients(decoder, "rollout", cond, last_rel)
+    ref, ref_grads = outputs_and_gradients(decoder, "tensor", cond, last_rel)
     assert not torch.equal(out, ref)  # the two paths really differ (rounding)
     torch.testing.assert_close(out, ref, rtol=1e-5, atol=1e-6)
     torch.testing.assert_close(lean, out, rtol=0, atol=0)

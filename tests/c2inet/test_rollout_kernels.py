@@ -4,7 +4,7 @@ float32, and the sigmoid made from it within float32 rounding of the exact one."
 import numpy as np
 from numba import njit
 
-from c2inet.backbones.rollout_kernels import NUMBA_OPTIONS, _sigmoid32, tanh32
+from c2inet.kernels.steps import NUMBA_OPTIONS, _sigmoid32, tanh32
 
 
 @njit(**{**NUMBA_OPTIONS, "cache": False})  # as the kernels compile it

@@ -1,13 +1,14 @@
 """The encoder's LSTMs through compiled steps: PyTorch's LSTM within float32 rounding, forwards
-and back, the module itself off float32 and for the reference backbone."""
+and back; off float32 refused, and never used by the reference backbone."""
 
 import pytest
 import torch
 from torch import nn
 
-from c2inet.backbones import BACKBONES, sequence
-from c2inet.backbones import rollout_kernels as kernels
-from c2inet.backbones.sequence import run_lstm
+from c2inet.backbones import BACKBONES
+from c2inet.kernels import sequence
+from c2inet.kernels import steps as kernels
+from c2inet.kernels.sequence import run_lstm
 
 
 def lstm_and_input(dtype=torch.float32):
@@ -38,10 +39,11 @@ def test_the_compiled_lstm_is_pytorchs_within_float32_rounding(monkeypatch):
         torch.testing.assert_close(run_lstm(lstm, x), ref, rtol=1e-5, atol=1e-6)
 
 
-def test_float64_and_the_reference_backbone_run_the_module_itself(monkeypatch):
+def test_float64_is_refused_and_the_reference_backbone_runs_the_module_itself(monkeypatch):
     monkeypatch.setattr(sequence, "_Sequence", None)  # any use of the compiled path fails
     lstm, x = lstm_and_input(torch.float64)
-    torch.testing.assert_close(run_lstm(lstm, x), lstm(x)[0], rtol=0, atol=0)
+    with pytest.raises(ValueError, match="float32 CPU tensors, not torch.float64"):
+        run_lstm(lstm, x)
     reference = BACKBONES["stgat-cell"](cond_dim=8).encoder  # tensor operations throughout
     assert reference._lstm(lstm.float(), x.float().detach()).shape == (8, 40, 32)
     assert BACKBONES["stgat"](cond_dim=8).encoder.compiled and not reference.compiled

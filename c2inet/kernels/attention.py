@@ -21,7 +21,8 @@ import torch
 from numba import njit
 from torch.autograd.function import once_differentiable
 
-from c2inet.backbones.rollout_kernels import NUMBA_OPTIONS
+from c2inet.kernels import check_compiled
+from c2inet.kernels.steps import NUMBA_OPTIONS
 
 SLOPE = np.float32(0.2)  # the scores' leaky ReLU, as STGAT's
 
@@ -151,6 +152,7 @@ def attend(h, a_src, a_dst, starts: torch.Tensor, widest: int) -> torch.Tensor:
     """Each agent's attention-weighted sum of its scene's projected features, per head:
     ``h`` (T, N, K, F) per agent, the attention vectors (K, F), the scenes' agent offsets
     ``starts`` (B + 1,) and the most agents of a scene -> (T, N, K, F). Float32 on the CPU."""
+    check_compiled(h)
     h = h.contiguous()
     if torch.is_grad_enabled() and (h.requires_grad or a_src.requires_grad):
         return _Attend.apply(h, a_src, a_dst, starts, widest)

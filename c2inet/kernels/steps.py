@@ -9,14 +9,13 @@ the cell's and the input's gradients one call backwards, leaving the gate produc
 Vectorising needs branch-free transcendentals, which numba's LLVM cannot take from a vector
 library: :func:`tanh32` is a rational approximation (Eigen's ``generic_fast_tanh_float``, within
 5 units in the last place of float32, tested), the sigmoid is ``(1 + tanh(x / 2)) / 2``.
-Tensor operations (:mod:`c2inet.backbones.rollout`) remain the reference and the path of every
-other device and dtype.
+Tensor operations (:mod:`c2inet.kernels.rollout`, ``model.kernels = tensor``) remain the
+reference and the path of every other device and dtype.
 """
 
 from __future__ import annotations
 
 import numpy as np
-import torch
 from numba import njit
 
 from c2inet import jit
@@ -37,14 +36,6 @@ _B6, _B4, _B2, _B0 = (
     _F(2.26843463243900e-03),
     _F(4.89352518554385e-03),
 )
-COMPILED = True  # False: tensor operations everywhere (the reference the kernels are held to)
-
-
-def compiled(tensor: torch.Tensor) -> bool:
-    """Whether work on ``tensor`` runs these kernels: float32 on the CPU, and :data:`COMPILED`."""
-    return COMPILED and tensor.device.type == "cpu" and tensor.dtype == torch.float32
-
-
 # every kernel: cached where a cache can be written (c2inet.jit), vectorised with fast math,
 # run without the GIL
 NUMBA_OPTIONS = jit.options(fastmath=True, nogil=True, error_model="numpy")

@@ -2,20 +2,20 @@
 
 The decoder's twelve steps were about 70 % of a training step, spent less in arithmetic than in
 the calls around it and in passes over memory: per step an embedding, two gate products, five
-activations and the output layer, each an autograd node, and twice as many again backwards.
-Here one product per step makes the gates from ``[h, x, 1]`` (the embedding and both biases
-folded in: the input is 2-d, so ``W_ih (W_e x + b_e)`` is ``(W_ih W_e) x`` plus a constant), and
-on the CPU in float32 everything else of a step is one compiled pass
-(:mod:`~c2inet.backbones.rollout_kernels`; tensor operations elsewhere). The backward walks the
-steps in reverse with one product and one compiled pass each, writing each step's gate
-gradients over its activations, and only over the rows some loss reached: the variety loss
-takes one sample of K per scene, so the other K - 1 are left out of the walk (their gradient is
-exactly zero). The weights' gradients are two products over all steps at once; the buffers are
-reused, since fresh ones fault in page by page. Training reaches the same function of the same
-parameters as :class:`torch.nn.LSTMCell`, summed in another order (rounding):
-``tests/c2inet/test_rollout.py`` holds it to the cell in float64, and the compiled steps to the
-tensor steps in float32. Measured in ``docs/learner.md``; tried and left: ``torch.compile`` of
-the decoder (1.12x at fixed shapes, 15 to 21 s to compile) and bf16 products on this CPU's AMX
+activations and the output layer, each an autograd node, and twice as many again backwards. Here
+one product per step makes the gates from ``[h, x, 1]`` (the embedding and both biases folded
+in: the input is 2-d, so ``W_ih (W_e x + b_e)`` is ``(W_ih W_e) x`` plus a constant), and on the
+CPU in float32 everything else of a step is one compiled pass (:mod:`~c2inet.kernels.steps`,
+``model.kernels = compiled``; tensor operations with ``tensor``). The backward walks the steps
+in reverse with one product and one compiled pass each, writing each step's gate gradients over
+its activations, and only over the rows some loss reached: the variety loss takes one sample of
+K per scene, so the other K - 1 are left out of the walk (their gradient is exactly zero). The
+weights' gradients are two products over all steps at once; the buffers are reused, since fresh
+ones fault in page by page. Training reaches the same function of the same parameters as
+:class:`torch.nn.LSTMCell`, summed in another order (rounding): ``tests/c2inet/test_rollout.py``
+holds it to the cell in float64, and the compiled steps to the tensor steps in float32. Measured
+in ``docs/learner.md``; tried and left: ``torch.compile`` of the decoder (1.12x at fixed shapes,
+15 to 21 s to compile) and bf16 products on this CPU's AMX
 (``torch.set_float32_matmul_precision("medium")``: no faster, the conversions eat it).
 """
 
@@ -26,7 +26,8 @@ import math
 import torch
 from torch.autograd.function import once_differentiable
 
-from c2inet.backbones import rollout_kernels as kernels
+from c2inet.kernels import check_compiled
+from c2inet.kernels import steps as kernels
 
 
 def rollout_weights(embed: torch.nn.Linear, cell: torch.nn.LSTMCell) -> torch.Tensor:
@@ -51,7 +52,7 @@ def _cell_backward(dh, dc, acts, tanhs, c_prev, d_gates) -> None:
 
 def _forward_step(hx, cs, acts, tanhs, out, w_out_t, b_out, now, then, residual) -> None:
     """One step forward in tensor operations from the gates' pre-activations ``acts`` (R, 4H),
-    as :func:`~c2inet.backbones.rollout_kernels.forward_step` does compiled."""
+    as :func:`~c2inet.kernels.steps.forward_step` does compiled."""
     hidden = cs.shape[2]
     i, f, g, o = acts.split(hidden, 1)
     torch.sigmoid_(acts[:, : 2 * hidden])
@@ -67,7 +68,7 @@ def _forward_step(hx, cs, acts, tanhs, out, w_out_t, b_out, now, then, residual)
 
 class _Buffers:
     """Flat buffers handed out again once a rollout (or an encoder LSTM,
-    :mod:`~c2inet.backbones.sequence`) is done with them. A training step's rollout holds about
+    :mod:`~c2inet.kernels.sequence`) is done with them. A training step's rollout holds about
     25 MB; fresh, every page of it faults in (glibc maps blocks that large anew each time),
     which cost about 15 % of a decoder step. Best fit first; a new buffer has
     room for a batch a quarter larger; at most ``keep`` are kept, none over ``largest`` bytes."""
@@ -100,11 +101,12 @@ class _Buffers:
 BUFFERS = _Buffers()  # shared with the encoder's LSTMs (sequence.py)
 
 
-def _run(h, x, weight, w_out, b_out, steps: int, residual: bool, keep: bool):
+def _run(h, x, weight, w_out, b_out, steps: int, residual: bool, keep: bool, fused: bool):
     """The forward loop: outputs (steps, R, out) and, with ``keep``, what the backward needs:
     every step's gate inputs ``[h, x, 1]`` (steps + 1, R, H + out + 1), activations (steps, R,
     4H), cell states (steps + 1, R, H) and their tanh (steps, R, H). Without ``keep`` two of
-    each are reused (evaluation at thousands of rows)."""
+    each are reused (evaluation at thousands of rows). ``fused``: each step's cell through the
+    compiled kernel (float32 on the CPU), else tensor operations."""
     rows, hidden = h.shape
     width = x.shape[1]
     kept = steps + 1 if keep else 2
@@ -117,8 +119,8 @@ def _run(h, x, weight, w_out, b_out, steps: int, residual: bool, keep: bool):
     outs = h.new_empty(steps, rows, width)
     hx[0, :, :hidden], hx[0, :, hidden:-1] = h, x
     weight_t, w_out_t = weight.t(), w_out.t()
-    fused = kernels.compiled(h)
     if fused:
+        check_compiled(h)
         arrays = [b.numpy() for b in (hx, cs, acts, tanhs, outs)]
         w_out_np, b_out_np = w_out.detach().numpy(), b_out.detach().numpy()
     for t in range(steps):
@@ -141,10 +143,10 @@ def walks_reached_rows(d_outs: torch.Tensor) -> bool:
 
 class _Rollout(torch.autograd.Function):
     @staticmethod
-    def forward(ctx, h, x, weight, w_out, b_out, steps, residual):
-        outs, kept = _run(h, x, weight, w_out, b_out, steps, residual, keep=True)
+    def forward(ctx, h, x, weight, w_out, b_out, steps, residual, fused):
+        outs, kept = _run(h, x, weight, w_out, b_out, steps, residual, keep=True, fused=fused)
         ctx.save_for_backward(weight, w_out, *kept)
-        ctx.residual, ctx.spent = residual, False
+        ctx.residual, ctx.fused, ctx.spent = residual, fused, False
         return outs
 
     @staticmethod
@@ -156,18 +158,18 @@ class _Rollout(torch.autograd.Function):
         ctx.spent = True
         live = (d_outs != 0).any(2).any(0) if walks_reached_rows(d_outs) else None
         if live is None or bool(live.all()):
-            grads = _backward(weight, w_out, d_outs, *kept, ctx.residual)
+            grads = _backward(weight, w_out, d_outs, *kept, ctx.residual, ctx.fused)
         else:
             index = live.nonzero()[:, 0]
             rows = [BUFFERS.take(b, len(b), len(index), b.shape[2]) for b in kept]
             for buffer, taken in zip(kept, rows, strict=True):
                 torch.index_select(buffer, 1, index, out=taken)
             d_rows = d_outs.index_select(1, index)
-            dh, carry, *weights = _backward(weight, w_out, d_rows, *rows, ctx.residual)
+            dh, carry, *weights = _backward(weight, w_out, d_rows, *rows, ctx.residual, ctx.fused)
             grads = (_scatter(dh, index, len(live)), _scatter(carry, index, len(live)), *weights)
             BUFFERS.give(*rows)
         BUFFERS.give(*kept)
-        return *grads, None, None
+        return *grads, None, None, None
 
 
 def _scatter(rows: torch.Tensor, index: torch.Tensor, total: int) -> torch.Tensor:
@@ -176,7 +178,7 @@ def _scatter(rows: torch.Tensor, index: torch.Tensor, total: int) -> torch.Tenso
     return rows.new_zeros(total, rows.shape[1]).index_copy_(0, index, rows)
 
 
-def _backward(weight, w_out, d_outs, hx, cs, acts, tanhs, residual: bool):
+def _backward(weight, w_out, d_outs, hx, cs, acts, tanhs, residual: bool, fused: bool):
     """The rollout's gradients from its outputs' ``d_outs`` (steps, R, out), walking its kept
     buffers back (``acts`` becomes the gates' gradient): the initial hidden state's and input's,
     then the gate weights', the output weight's and bias'."""
@@ -189,7 +191,7 @@ def _backward(weight, w_out, d_outs, hx, cs, acts, tanhs, residual: bool):
     carry = hx.new_zeros(rows, width)  # the gradient reaching x_t through the later steps
     to_h = weight[:, :hidden].contiguous()  # the gates' weights on h_{t-1} and on x_{t-1}
     to_x = weight[:, hidden:-1].contiguous()
-    if kernels.compiled(d_outs):
+    if fused:
         arrays = [a.numpy() for a in (d_outs.contiguous(), d_xs, carry, dh, dc, acts, tanhs, cs)]
         w_out_np, to_x_np = w_out.detach().numpy(), to_x.t().contiguous().numpy()
         for t in reversed(range(steps)):
@@ -216,14 +218,16 @@ def lstm_rollout(
     b_out: torch.Tensor,
     steps: int,
     residual: bool,
+    fused: bool,
 ) -> torch.Tensor:
     """``steps`` outputs (steps, R, out) of an LSTM started at hidden state ``h`` (R, H) and
     cell state zero, each step's input its last output (``x``, (R, out), the first): the output
     is ``W_out h + b_out``, added to the last one with ``residual``. ``weight`` makes the gates
-    from ``[h, x, 1]`` (:func:`rollout_weights`)."""
+    from ``[h, x, 1]`` (:func:`rollout_weights`). ``fused``: each step through the compiled
+    kernel (``model.kernels = compiled``), else tensor operations."""
     args = (h, x, weight, w_out, b_out)
     if torch.is_grad_enabled() and any(a.requires_grad for a in args):
-        return _Rollout.apply(*args, steps, residual)
-    outs, kept = _run(*args, steps, residual, keep=False)
+        return _Rollout.apply(*args, steps, residual, fused)
+    outs, kept = _run(*args, steps, residual, keep=False, fused=fused)
     BUFFERS.give(*kept)
     return outs

@@ -4,7 +4,7 @@ STGAT's encoder runs two one-layer LSTMs over the eight observed steps of a batc
 few hundred rows. At that size PyTorch's oneDNN LSTM spends most of its time around the
 arithmetic (0.25 to 0.6 ms forwards, 0.4 to 1.3 ms back, per call, measured). Here the input's
 part of every step's gates is one product, each step adds the hidden state's product and runs
-the cell in one compiled pass (:mod:`~c2inet.backbones.rollout_kernels`), and the backward walks
+the cell in one compiled pass (:mod:`~c2inet.kernels.steps`), and the backward walks
 the steps with one compiled pass and one product each, the weights' gradients as products over
 all steps. The module's own parameters are used (its state dict unchanged); off the CPU or in
 another dtype the module runs as it is.
@@ -16,8 +16,9 @@ import torch
 from torch import nn
 from torch.autograd.function import once_differentiable
 
-from c2inet.backbones import rollout_kernels as kernels
-from c2inet.backbones.rollout import BUFFERS
+from c2inet.kernels import check_compiled
+from c2inet.kernels import steps as kernels
+from c2inet.kernels.rollout import BUFFERS
 
 
 def lstm_weights(lstm: nn.LSTM) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -81,10 +82,9 @@ class _Sequence(torch.autograd.Function):
 
 def run_lstm(lstm: nn.LSTM, x: torch.Tensor) -> torch.Tensor:
     """The output sequence (T, R, H) of a one-layer, one-way LSTM over ``x`` (T, R, I) from zero
-    states: through the compiled steps where :func:`~c2inet.backbones.rollout_kernels.compiled`,
-    else the module itself."""
-    if not kernels.compiled(x):
-        return lstm(x)[0]
+    states, through the compiled steps (float32 on the CPU; :func:`~c2inet.kernels.check_compiled`):
+    the same function as the module's own ``lstm(x)[0]``."""
+    check_compiled(x)
     weights = lstm_weights(lstm)
     if torch.is_grad_enabled() and (x.requires_grad or lstm.weight_hh_l0.requires_grad):
         return _Sequence.apply(x, *weights)
