@@ -102,9 +102,9 @@ def test_a_plugin_preset_is_listed_found_by_name_and_cannot_take_a_builtins(
     from sim.studies.benchmark import presets
 
     monkeypatch.setattr(plugin_parts, "RADIUS", replace(plugin_parts.PLAZA, name="radius"), False)
-    entry_points["c2inet.presets"] = [
-        EntryPoint("plaza", "plugin_parts:PLAZA", "c2inet.presets"),
-        EntryPoint("radius-too", "plugin_parts:RADIUS", "c2inet.presets"),
+    entry_points["sim.presets"] = [
+        EntryPoint("plaza", "plugin_parts:PLAZA", "sim.presets"),
+        EntryPoint("radius-too", "plugin_parts:RADIUS", "sim.presets"),
     ]
     assert PRESETS.get("plaza").tune_scenario == "crowd_noise_0.15..0.35:0.1"
     assert "a preset from a plugin" in listing(["presets"], []) and "plaza" in presets()

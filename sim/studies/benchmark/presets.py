@@ -1,7 +1,7 @@
 """The fair benchmark's protocol sizes and presets: plain data, so ``python -m sim.bench --help``
-lists them without loading the learner (``protocol.py`` runs them). The presets sit
-in the registry kit: another package adds one through the ``c2inet.presets`` entry-point group
-(a :class:`Preset`), and ``--list presets`` shows them all."""
+lists them without loading the learner (``protocol.py`` runs them). The presets sit in the
+registry kit: another package adds one (a :class:`Preset`) through the ``sim.presets``
+entry-point group, named after the package it lives in, and ``--list presets`` shows them all."""
 
 from __future__ import annotations
 
@@ -52,7 +52,7 @@ def _is_preset(entry: Any) -> str | None:
     )
 
 
-REGISTRY: Registry[Preset] = Registry("preset", __name__, "c2inet.presets", _is_preset)
+REGISTRY: Registry[Preset] = Registry("preset", __name__, "sim.presets", _is_preset)
 PRESETS = REGISTRY.entries  # name -> preset: the built-in ones, then plugins once discovered
 
 
