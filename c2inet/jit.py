@@ -7,6 +7,9 @@ and the crowd controllers) take their options here.
 - **A damaged cache is rebuilt**: a truncated, random or swapped cache file reads as a miss
   (said once), so numba compiles anew and writes over it, instead of every command failing
   until the user finds and deletes ``__pycache__``.
+- **No numba at all** (absent, or built for another Python or NumPy): the learner still runs,
+  STGAT on its tensor kernels (``model.kernels = auto`` resolves to ``tensor``, said once and
+  written to the run card); only the simulators' controllers need numba.
 """
 
 from __future__ import annotations
@@ -14,8 +17,14 @@ from __future__ import annotations
 import sys
 from functools import cache
 
-import numba
-from numba.core import caching
+try:  # the learner runs without numba (STGAT's tensor kernels); the simulators need it
+    import numba
+    from numba.core import caching
+except ImportError as error:  # absent, or built for another Python or NumPy
+    numba = caching = None
+    MISSING = f"{type(error).__name__}: {str(error).splitlines()[0][:100]}"
+else:
+    MISSING = None
 
 _said: set[str] = set()
 
@@ -30,6 +39,8 @@ def note(text: str) -> None:
 @cache
 def cache_usable() -> bool:
     """Whether numba can keep compiled kernels on disk here (probed once a process)."""
+    if numba is None:
+        return False
     try:
         numba.njit(cache=True)(_probe)
     except (RuntimeError, OSError) as error:
@@ -71,7 +82,7 @@ def _tolerant(load):
     return guarded
 
 
-if not getattr(caching.Cache._load_overload, "tolerant", False):
+if caching is not None and not getattr(caching.Cache._load_overload, "tolerant", False):
     caching.Cache._load_overload = _tolerant(caching.Cache._load_overload)
     caching.IndexDataCacheFile._load_index = _tolerant(caching.IndexDataCacheFile._load_index)
 
@@ -79,3 +90,13 @@ if not getattr(caching.Cache._load_overload, "tolerant", False):
 def options(**extra) -> dict:
     """``njit``'s options with the cache where one can be written."""
     return {"cache": cache_usable(), **extra}
+
+
+def njit(*args, **kwargs):
+    """numba's ``njit``; where numba cannot be imported, the function itself (plain Python,
+    which ``model.kernels`` never picks then: :func:`c2inet.kernels.resolve`)."""
+    if numba is not None:
+        return numba.njit(*args, **kwargs)
+    if len(args) == 1 and callable(args[0]) and not kwargs:
+        return args[0]
+    return lambda function: function

@@ -11,12 +11,15 @@ and written to every run card:
 - ``tensor``: the rollout as one autograd node in tensor operations (any device);
 - ``compiled``: the rollout, the encoder's LSTMs and the attention through the numba steps
   (the CPU in float32);
-- ``auto``: ``compiled`` on the CPU, ``tensor`` elsewhere.
+- ``auto``: ``compiled`` on the CPU, ``tensor`` elsewhere, and ``tensor`` where numba cannot
+  be imported (said once).
 """
 
 from __future__ import annotations
 
 import torch
+
+from c2inet import jit
 
 MODES = ("auto", "compiled", "tensor", "cell")
 
@@ -29,9 +32,13 @@ def resolve(setting: str, device: torch.device | str) -> str:
         raise ValueError(f"model.kernels {setting!r}: expected one of {', '.join(MODES)}")
     kind = torch.device(device).type
     if setting == "auto":
-        return "compiled" if kind == "cpu" else "tensor"
+        if kind == "cpu" and jit.MISSING is not None:
+            jit.note(f"numba cannot be imported ({jit.MISSING}): STGAT runs its tensor kernels")
+        return "compiled" if kind == "cpu" and jit.MISSING is None else "tensor"
     if setting == "compiled" and kind != "cpu":
         raise ValueError(f"model.kernels 'compiled' runs on the CPU, not on {kind} (use tensor)")
+    if setting == "compiled" and jit.MISSING is not None:
+        raise ValueError(f"model.kernels 'compiled' needs numba ({jit.MISSING}); use tensor")
     return setting
 
 

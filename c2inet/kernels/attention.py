@@ -18,9 +18,9 @@ import math
 
 import numpy as np
 import torch
-from numba import njit
 from torch.autograd.function import once_differentiable
 
+from c2inet.jit import njit
 from c2inet.kernels import check_compiled
 from c2inet.kernels.steps import NUMBA_OPTIONS
 

@@ -16,9 +16,9 @@ reference and the path of every other device and dtype.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from c2inet import jit
+from c2inet.jit import njit
 
 _F = np.float32
 _CLAMP = _F(7.90531110763549805)  # inputs held here; beyond it tanh is within 5 ulp of tanh32(it)
