@@ -26,12 +26,14 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from c2inet.device import WORKER_SLOT
 from c2inet.errors import InputError, WorkerDied, quote
 from sim.experiment.netns import private_network
 
 BACKENDS = ("local", "ray")
 
+# a local worker's slot, read by c2inet.device.placed (named here too: importing that module
+# loads torch, which a command's --help must not)
+WORKER_SLOT = "C2I_WORKER_SLOT"
 _shared: tuple[str, tuple] = ("", ())  # a local worker's shared inputs: their file, its contents
 _pool: ProcessPoolExecutor | None = None  # this driver's local workers, between batches if kept
 _kept = 0  # how many kept_workers() blocks are open
