@@ -2,9 +2,11 @@
 float32, and the sigmoid made from it within float32 rounding of the exact one."""
 
 import numpy as np
-from numba import njit
+import pytest
 
 from c2inet.kernels.steps import NUMBA_OPTIONS, _sigmoid32, tanh32
+
+njit = pytest.importorskip("numba", exc_type=ImportError).njit  # none without numba
 
 
 @njit(**{**NUMBA_OPTIONS, "cache": False})  # as the kernels compile it
