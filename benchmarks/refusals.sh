@@ -62,3 +62,9 @@ printf 'generator = "files"\n[knobs]\nformat = "trajnetpp"\nscale = 100.0\n[valu
 row "8: TrajNet++ 9e5 at scale 100 (9e7 m)" $PY -m sim.generate --scenarios-dir "$W" --scenario far_a --out gen6
 row "8: a 300-character SQLite name" $PY -m sim.bench --scenario crowd_noise_0.1..0.3 --quick --storage "sqlite:///$W/$($PY -c "print('s'*300)").db" --out bench3
 C2I_DATA_ROOT="$($PY -c "print('/tmp/' + 'r'*5000)")" row "8: a 5,000-character \$C2I_DATA_ROOT" $PY -m sim.run --scenario sdd_trajnet_all --quick --methods cv
+$PY -c "import json; d = json.load(open('$ROOT/sim/studies/benchmark/tunings/radius.json')); d['methods']['finetune']['settings']['data'] = {'agents': 3}; json.dump(d, open('tuned.json', 'w'))"
+row "6: --tuned-from with a data setting" $PY -m sim.run --scenario crowd_radius_0.1 --quick --methods finetune --tuned-from tuned.json
+row "7: pretrain_transfer --out a file" $PY "$ROOT/scripts/pretrain_transfer.py" --out /dev/null/x
+row "7: ranking_transfer on no board" $PY "$ROOT/scripts/ranking_transfer.py" "$W" "$W"
+row "2: a plugin named finetune (pytest)" $PY -m pytest -q -p no:cacheprovider "$ROOT/tests/c2inet/test_methods.py" -k "named_like_a_built_in"
+row "testbed without the sim extra" $PY -c "import runpy, sys; sys.modules['pymunk'] = None; sys.argv = ['-m']; runpy.run_module('sim.run', run_name='__main__')"
