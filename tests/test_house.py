@@ -169,12 +169,7 @@ def test_the_learner_and_its_tests_load_and_train_without_the_simulators(tmp_pat
 def test_a_command_without_the_sim_extra_says_what_to_install_in_one_line():
     """A learner-only install (``pip install c2i-testbed``): a command of the testbed is one line
     naming the extra, exit code 2; importing ``sim`` from Python is an ImportError saying it."""
-    probe = (
-        "import runpy, sys\n"
-        "sys.modules['pymunk'] = None\n"
-        "sys.argv = {argv!r}\n"
-        "{body}\n"
-    )
+    probe = "import runpy, sys\nsys.modules['pymunk'] = None\nsys.argv = {argv!r}\n{body}\n"
     command = probe.format(argv=["-m"], body="runpy.run_module('sim.run', run_name='__main__')")
     done = subprocess.run([sys.executable, "-c", command], capture_output=True, text=True)
     assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr
