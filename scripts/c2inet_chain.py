@@ -83,11 +83,12 @@ def table(scenario: str, ours: dict, theirs: dict, metric: str) -> list[str]:
             p = sign_flip(np.subtract(mine, base))
             lines.append(
                 f"| {label(setting)} | {rule} | {np.mean(mine):.3f} | {compared.difference:+.3f} "
-                f"[{low:+.3f}, {high:+.3f}] | {p:.3f} |"
+                f"[{low:+.3f}, {high:+.3f}] | {'-' if p is None else f'{p:.3f}'} |"
             )
     effect = detectable(differences)
+    effect = "-" if effect is None else f"{effect:.3f} m"
     lines += ["", f"{len(seeds)} paired seeds; the smallest difference these seeds detect (80 % "
-              f"power, 5 %): {effect:.3f} m."]  # fmt: skip
+              f"power, 5 %): {effect}."]  # fmt: skip
     return lines
 
 
