@@ -66,5 +66,5 @@ $PY -c "import json; d = json.load(open('$ROOT/sim/studies/benchmark/tunings/rad
 row "6: --tuned-from with a data setting" $PY -m sim.run --scenario crowd_radius_0.1 --quick --methods finetune --tuned-from tuned.json
 row "7: pretrain_transfer --out a file" $PY "$ROOT/scripts/pretrain_transfer.py" --out /dev/null/x
 row "7: ranking_transfer on no board" $PY "$ROOT/scripts/ranking_transfer.py" "$W" "$W"
-row "2: a plugin named finetune (pytest)" $PY -m pytest -q -p no:cacheprovider "$ROOT/tests/c2inet/test_methods.py" -k "named_like_a_built_in"
+row "2: a plugin named finetune (its pytest)" sh -c "cd '$ROOT' && $PY -m pytest -q -p no:cacheprovider tests/c2inet/test_methods.py -k named_like_a_built_in"
 row "testbed without the sim extra" $PY -c "import runpy, sys; sys.modules['pymunk'] = None; sys.argv = ['-m']; runpy.run_module('sim.run', run_name='__main__')"

@@ -198,6 +198,16 @@ def test_sim_run_takes_a_presets_tuned_settings_by_its_name(capsys, tmp_path):
                     given, "--print-config"]) == 2  # fmt: skip
         err = capsys.readouterr().err
         assert why in err and err.count("\n") == 1
+    planted = json.loads(artefacts.shipped("radius").read_text())  # issue 64's case 6
+    planted["methods"]["derpp"]["settings"]["data"] = {"agents": 3}
+    planted["methods"]["ewc"]["settings"]["model"] = {"z_dim": 4}
+    bad = tmp_path / "planted.json"
+    bad.write_text(json.dumps(planted))
+    for method, why in (("derpp", "scope 'data'"), ("ewc", "model.z_dim is outside ewc's")):
+        assert run(["--scenario", "crowd_radius_0.1,0.2", "--methods", method, "--tuned-from",
+                    str(bad), "--print-config"]) == 2  # fmt: skip
+        err = capsys.readouterr().err
+        assert why in err and err.count("\n") == 1
 
 
 def test_two_presets_optuna_designs_differ_and_one_presets_does_not_follow_its_curriculum():

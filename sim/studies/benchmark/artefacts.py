@@ -17,6 +17,7 @@ from typing import Any
 from c2inet.errors import InputError, one_line
 from c2inet.files import file_digest, write_text_atomic
 from sim.experiment.folders import MAX_CONFIG_BYTES
+from sim.experiment.tuning import search_space
 
 FORMAT = 1
 SHIPPED = Path(__file__).parent / "tunings"  # the package's artefacts, one a preset
@@ -156,6 +157,7 @@ def tuned_settings(given: str, methods: tuple[str, ...], tasks: int) -> tuple[di
         entry = table.get(method)
         if not isinstance(entry, dict) or not isinstance(entry.get("settings"), dict):
             raise InputError(f"--tuned-from {path}: no chosen settings of {method!r}")
+        tunable_only(f"--tuned-from {path}: {method}", method, entry["settings"])
         for scope, values in entry["settings"].items():
             for key, value in values.items():
                 have = settings.setdefault(scope, {})
@@ -183,3 +185,24 @@ def _board_settings(preset: str, methods: tuple[str, ...], tasks: int) -> dict[s
 
 def _names() -> str:
     return ", ".join(sorted(p.stem for p in SHIPPED.glob("*.json"))) or "none"
+
+
+def tunable_only(where: str, method: str, settings: dict[str, dict[str, Any]]) -> None:
+    """Refuse a borrowed setting no tuning of ``method`` could have chosen: an unknown scope,
+    the data (the board would be evaluated on other data than it says), or a key outside the
+    method's search space (``sim.experiment.tuning.search_space``: ``train.lr`` and its own)."""
+    space = search_space(method)
+    for scope, values in settings.items():
+        if scope not in ("train", "model", method):
+            why = "the data are the board's own" if scope == "data" else "an unknown scope"
+            raise InputError(
+                f"{where}: settings of scope {scope!r}: {why}; a tuning chooses train.*, "
+                f"model.* and {method}.* within its search space"
+            )
+        for key in values:
+            name = key if scope == method else f"{scope}.{key}"
+            if name not in space:
+                known = ", ".join(sorted(space)) or "nothing (it is not tuned)"
+                raise InputError(
+                    f"{where}: {scope}.{key} is outside {method}'s search space ({known})"
+                )

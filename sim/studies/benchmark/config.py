@@ -19,7 +19,7 @@ from sim.experiment.sweep import layered
 from sim.experiment.trials import TRIAL_TRAIN
 from sim.experiment.tuning import SAMPLERS, TuneConfig
 from sim.scenario import parse_scenario
-from sim.studies.benchmark.artefacts import read_json, read_tuning
+from sim.studies.benchmark.artefacts import read_json, read_tuning, tunable_only
 from sim.studies.benchmark.presets import (
     BATCH,
     RACE,
@@ -52,7 +52,7 @@ def borrowed_tuning(
             isinstance(v, dict) for v in settings.values()
         ):
             raise InputError(f"{option} {path}: no chosen settings of {method!r}")
-        _tunable_only(f"{option} {path}: {method}", method, settings)
+        tunable_only(f"{option} {path}: {method}", method, settings)
         try:
             base.only(method, layered(base, settings))  # checked as --set is
         except InputError as error:
@@ -70,29 +70,6 @@ def borrowed_tuning(
             source["tune_scenario"] = tuned_on["tune_scenario"]
     # no trial ran here: the board counts none, and says whose settings it used
     return {m: {"settings": chosen[m]["settings"], "trials": []} for m in ranked}, source
-
-
-def _tunable_only(where: str, method: str, settings: dict[str, dict[str, Any]]) -> None:
-    """Refuse a borrowed setting no tuning of ``method`` could have chosen: an unknown scope,
-    the data (the board would be evaluated on other data than it says), or a key outside the
-    method's search space (``sim.experiment.tuning.search_space``: ``train.lr`` and its own)."""
-    from sim.experiment.tuning import search_space
-
-    space = search_space(method)
-    for scope, values in settings.items():
-        if scope not in ("train", "model", method):
-            why = "the data are the board's own" if scope == "data" else "an unknown scope"
-            raise InputError(
-                f"{where}: settings of scope {scope!r}: {why}; a tuning chooses train.*, "
-                f"model.* and {method}.* within its search space"
-            )
-        for key in values:
-            name = key if scope == method else f"{scope}.{key}"
-            if name not in space:
-                known = ", ".join(sorted(space)) or "nothing (it is not tuned)"
-                raise InputError(
-                    f"{where}: {scope}.{key} is outside {method}'s search space ({known})"
-                )
 
 
 def references(methods: tuple[str, ...]) -> tuple[str, ...]:
