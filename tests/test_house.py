@@ -152,7 +152,17 @@ def test_the_learner_and_its_tests_load_and_train_without_the_simulators(tmp_pat
     need not run twice."""
     (tmp_path / "block_simulators.py").write_text(BLOCKER)
     done = subprocess.run(
-        [sys.executable, "-m", "pytest", "-q", "-x", "-p", "block_simulators", "tests/c2inet"]
+        [
+            sys.executable,
+            "-m",
+            "pytest",
+            "-q",
+            "-x",
+            "-rP",
+            "-p",
+            "block_simulators",
+            "tests/c2inet",
+        ]
         + ["-k", "test_same_seed_same_training_on_cpu"],
         cwd=ROOT,
         env={"PYTHONPATH": str(tmp_path), "PATH": "/usr/bin:/bin"},
@@ -163,6 +173,7 @@ def test_the_learner_and_its_tests_load_and_train_without_the_simulators(tmp_pat
     assert done.returncode == 0, done.stdout[-3000:]
     summary = done.stdout.strip().splitlines()[-1]
     assert re.search(r"^1 passed, (1 skipped, )?\d+ deselected", summary), summary  # no numba
+    assert "numba cannot be imported" in done.stdout + done.stderr  # the tensor kernels trained
     assert "error" not in summary, summary
 
 
