@@ -325,8 +325,10 @@ def _needs_network(options: dict[str, Any]) -> str | None:
     server), or None."""
     if options.get("live"):
         return "its jobs stream to a viewer"
-    if str(options.get("tracking") or "").startswith(("http:", "https:")):
-        return "its jobs log to a tracking server"
+    for logger in options.get("loggers") or ():  # mlflow=URI, wandb=online (viz.loggers)
+        target = logger.partition("=")[2]
+        if target.startswith(("http:", "https:")) or target == "online":
+            return f"its jobs log to {target}"
     return None
 
 

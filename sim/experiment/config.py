@@ -104,13 +104,19 @@ class ExperimentConfig:
     def _check_network(self) -> None:
         """The device, the backbone and its kernels, before any work: a device this machine
         lacks, an unknown backbone (one line naming the known ones), compiled kernels on a GPU."""
-        device = resolve_device(self.device)
+        try:
+            self.kernels_used()
+        except ValueError as error:
+            raise InputError(f"--set {error}") from None
+
+    def kernels_used(self) -> str:
+        """Which of the backbone's kernels the jobs run (``model.kernels`` resolved for the
+        run's device, ``c2inet.kernels``): compiled, tensor or cell; ``its own`` for a backbone
+        that says nothing of them."""
         backbone = BACKBONE_REGISTRY.get(self.backbone)
-        if hasattr(backbone, "kernels_for"):
-            try:
-                backbone.kernels_for(self.settings.get("model", {}).get("kernels", "auto"), device)
-            except ValueError as error:
-                raise InputError(f"--set {error}") from None
+        if not hasattr(backbone, "kernels_for"):
+            return "its own"
+        return backbone.kernels_for(self.model_config().kernels, resolve_device(self.device))
 
     @cached_property
     def specs(self) -> list[DomainSpec]:

@@ -27,7 +27,6 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import torch
 
-from c2inet.backbones import BACKBONES
 from c2inet.device import resolve_device
 from c2inet.files import (
     file_digest,
@@ -199,7 +198,7 @@ def write_report_and_figures(
         "recording": "recording.rrd" if config.record else None,
         "unit": config.unit,
         "figures": [],
-        "network": f"{config.backbone}, {kernels_used(config)} kernels",
+        "network": f"{config.backbone}, {config.kernels_used()} kernels",
     }
     if figures:
         note = "quick sizes: a smoke test, not a result" if config.quick else None
@@ -208,16 +207,6 @@ def write_report_and_figures(
     report = markdown_report(config.scenario, curriculum.labels, config.k, summary, run)
     write_text_atomic(out / "report.md", report)
     return run, report
-
-
-def kernels_used(config) -> str:
-    """Which of the backbone's kernels ran (``model.kernels`` resolved for the run's device;
-    ``c2inet.kernels``): ``compiled``, ``tensor`` or ``cell``; ``its own`` for a backbone that
-    says nothing of them."""
-    backbone = BACKBONES[config.backbone]
-    if not hasattr(backbone, "kernels_for"):
-        return "its own"
-    return backbone.kernels_for(config.model_config().kernels, resolve_device(config.device))
 
 
 def run_card(config, execution, curriculum, wall: float, argv: list[str]) -> dict[str, Any]:
@@ -237,7 +226,7 @@ def run_card(config, execution, curriculum, wall: float, argv: list[str]) -> dic
         "jobs": execution.jobs,
         "threads": torch.get_num_threads(),  # what torch uses, not only what was asked
         "device_used": str(resolve_device(config.device)),  # "auto" resolved on this machine
-        "kernels": kernels_used(config),
+        "kernels": config.kernels_used(),
         "wall_seconds": round(wall, 1),
         "model": asdict(config.model_config()),
         "train": asdict(config.train_config()),

@@ -252,3 +252,8 @@ def test_a_local_ray_cluster_starts_in_a_network_namespace_holding_only_the_loop
     assert child.stdout.strip() == "['lo']"
     with netns.private_network("its jobs stream to a viewer") as private:
         assert not private and namespace() == before
+    from sim.experiment.backends import _needs_network
+
+    assert _needs_network({"loggers": ("csv", "mlflow")}) is None  # files: the namespace is fine
+    assert "http://127.0.0.1:5000" in _needs_network({"loggers": ("mlflow=http://127.0.0.1:5000",)})
+    assert _needs_network({"loggers": ("wandb=online",)}) and _needs_network({"live": "connect"})
