@@ -104,6 +104,7 @@ class ExperimentConfig:
     def _check_network(self) -> None:
         """The device, the backbone and its kernels, before any work: a device this machine
         lacks, an unknown backbone (one line naming the known ones), compiled kernels on a GPU."""
+        resolve_device(self.device)  # its own one line, before the kernels it decides
         try:
             self.kernels_used()
         except ValueError as error:
