@@ -24,13 +24,10 @@ venv: $(VENV)/.installed
 run: venv
 	$(PY) -m sim.run --scenario $(SCENARIO) --jobs 2 --set data.splits.train=150
 
-# worksteal: an idle test worker takes queued tests from a busy one, so the workers end together
-# (4:09 against 4:47 for xdist's default, which hands out fixed chunks). One worker more than
-# the cores: many tests wait on a process, a port or a deadline, and the third worker uses
-# that time (4:35 against 4:48 with two, on 2 cores)
-WORKERS := $(shell n=$$(nproc 2>/dev/null) && echo $$((n + 1)) || echo auto)
+# worksteal: an idle test worker takes queued tests from a busy one, so the two end together
+# (4:09 against 4:47 for xdist's default, which hands out fixed chunks)
 test: venv
-	$(PY) -m pytest -q -n $(WORKERS) --dist worksteal --durations=15
+	$(PY) -m pytest -q -n auto --dist worksteal --durations=15
 
 lint: venv
 	$(VENV)/bin/ruff check . && $(VENV)/bin/ruff format --check .
