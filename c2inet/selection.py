@@ -15,6 +15,15 @@ from typing import Any
 import torch
 
 SELECTIONS = ("last", "val")  # the epoch a task keeps: its last, or its validation-best
+# what "best" means: the lowest best-of-K ADE, FDE, or their sum (both, in metres)
+SELECTION_METRICS = ("ade", "fde", "ade+fde")
+
+
+def selection_score(scores: dict[str, float], metric: str) -> float:
+    """The number an epoch is selected by, from its validation ``scores`` (``ade``, ``fde``)."""
+    if metric == "ade+fde":
+        return scores["ade"] + scores["fde"]
+    return scores[metric]
 
 
 class BestEpoch:

@@ -37,7 +37,7 @@ from c2inet.methods.base import Method, TaskContext
 from c2inet.metrics import average_seen, forgetting_final
 from c2inet.options import Tunable, check_range, choose, require
 from c2inet.schedule import SCHEDULES, learning_rate, set_learning_rate
-from c2inet.selection import SELECTIONS, BestEpoch
+from c2inet.selection import SELECTION_METRICS, SELECTIONS, BestEpoch, selection_score
 
 # wide enough that no tuned rate sat at a bound at batch 16 or 64 (docs/benchmark.md)
 TRAIN_SPACE = {"train.lr": Tunable(1e-5, 5e-2, log=True)}  # tuned for every method that trains
@@ -84,9 +84,10 @@ class TrainConfig:
     warmup: float = 0.0
     lr_final: float = 0.01
     # the epoch a task keeps (c2inet.selection): its last, or the one of lowest best-of-select_k
-    # ADE on its own validation split
+    # error on its own validation split: ade, fde, or their sum (ade+fde)
     select: str = "last"
     select_k: int = 20
+    select_metric: str = "ade"
     # each epoch's scenes turned (c2inet.augment): none, rotate (any angle) or axes (quarter
     # turns and mirror images)
     augment: str = "none"
@@ -95,6 +96,7 @@ class TrainConfig:
         check_device_name(self.device)
         choose(self, "schedule", SCHEDULES)
         choose(self, "select", SELECTIONS)
+        choose(self, "select_metric", SELECTION_METRICS)
         choose(self, "augment", AUGMENTATIONS)
         require(self, 0, "epochs", "seed", "val_every", "warmup")
         require(self, 0, "lr_final", high=1)
@@ -345,10 +347,11 @@ class ContinualTrainer:
             method.after_epoch(ctx, epoch)
             record = {"task": ctx.index, "epoch": epoch, **losses}
             if cfg.select == "val":
-                score = evaluate(
+                scores = evaluate(
                     model, val, cfg.select_k, cfg.seed, cfg.eval_batch_scenes, point_draws=0
-                )["ade"]
-                record["select_ade"] = score
+                )
+                record["select_ade"], record["select_fde"] = scores["ade"], scores["fde"]
+                score = selection_score(scores, cfg.select_metric)
                 best.offer(score, epoch, model, ctx.optimiser, method)
             if cfg.val_every and (epoch + 1) % cfg.val_every == 0:
                 for seen in self.tasks[: ctx.index + 1]:

@@ -158,7 +158,8 @@ def reproduce_markdown(report: dict[str, Any]) -> str:
         f"{report['epochs']} epochs, batch {train['batch_scenes']} scenes, lr {train['lr']:g} "
         f"({train['schedule']}, warm-up {train['warmup']:g} epochs, to {train['lr_final']:g} of "
         f"it), variety loss best of {train['k_train']}, selection {train['select']} "
-        f"(best of {train['select_k']}), augmentation {train['augment']}, loss in "
+        f"(best-of-{train['select_k']} {train.get('select_metric', 'ade').upper()}), "
+        f"augmentation {train['augment']}, loss in "
         f"{report.get('loss_units', 'scale')} units."
         + (" **--quick: a smoke test.**" if report["quick"] else ""),
         "",

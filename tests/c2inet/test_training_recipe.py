@@ -66,34 +66,51 @@ def test_best_epoch_keeps_the_state_of_the_lowest_score():
 
 def test_a_task_keeps_its_validation_best_epoch(monkeypatch):
     """With ``select = val`` the trainer scores each epoch on the current task's validation
-    split alone (a planted curve here, best at epoch 1 of 3) and ends the task with that epoch's
-    weights: its test errors are those of a run of 2 epochs, not of 3."""
-    planted = iter([0.5, 0.2, 0.4] * 2)
+    split alone (a planted curve here, best ADE at epoch 1 of 3, best FDE at epoch 2) and ends
+    the task with the epoch its ``select_metric`` ranks first: with ADE its test errors are
+    those of a run of 2 epochs, not of 3; with FDE, those of the 3-epoch run."""
+    planted = {"ade": [0.5, 0.2, 0.4], "fde": [0.9, 0.8, 0.5]}
     scored = []
     real_evaluate = trainer_module.evaluate
 
     def fake_evaluate(model, windows, k, *args, **kwargs):
         if k == 7:  # the selection's score (select_k = 7 marks it)
+            epoch = len(scored) % 3
             scored.append(windows)
-            return {"ade": next(planted)}
+            return {key: curve[epoch] for key, curve in planted.items()}
         return real_evaluate(model, windows, k, *args, **kwargs)
 
     monkeypatch.setattr(trainer_module, "evaluate", fake_evaluate)
     tasks = turning_tasks()
 
-    def run(epochs, select):
-        config = TrainConfig(epochs=epochs, k=2, select=select, select_k=7, val_every=0)
+    def run(epochs, select, metric="ade"):
+        config = TrainConfig(
+            epochs=epochs, k=2, select=select, select_k=7, select_metric=metric, val_every=0
+        )
         return ContinualTrainer(get_method("finetune")(ModelConfig()), tasks, config).run()
 
+    def selected_epochs(result):
+        return [r["selected_epoch"] for r in result.history if "selected_epoch" in r]
+
     selected = run(3, "val")
-    assert [r["selected_epoch"] for r in selected.history if "selected_epoch" in r] == [1, 1]
+    assert selected_epochs(selected) == [1, 1]
+    assert [r["select_fde"] for r in selected.history] == planted["fde"] * 2
     assert [id(w) for w in scored] == [id(tasks[0].val)] * 3 + [id(tasks[1].val)] * 3
+    assert selected_epochs(run(3, "val", "fde")) == [2, 2]
+    assert selected_epochs(run(3, "val", "ade+fde")) == [2, 2]  # 0.9 against 1.0 and 1.4
+    by_fde = run(3, "val", "fde")
     last = run(3, "last")
+    np.testing.assert_array_equal(by_fde.matrices["ade"], last.matrices["ade"])
     assert not np.array_equal(selected.matrices["ade"], last.matrices["ade"])  # live
     # the selected run holds epoch 1's weights: task 0's row equals a 2-epoch run's
     monkeypatch.setattr(trainer_module, "evaluate", real_evaluate)
     two = run(2, "last")
     np.testing.assert_array_equal(selected.matrices["ade"][0], two.matrices["ade"][0])
+
+
+def test_an_unknown_selection_metric_is_refused():
+    with pytest.raises(ValueError, match="select_metric"):
+        TrainConfig(select_metric="mse")
 
 
 def test_selection_needs_a_validation_split():
