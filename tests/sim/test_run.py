@@ -61,7 +61,7 @@ def test_quick_run_writes_every_output(tmp_path, capsys):
     assert "c2inet-online, c from responsible" in result.stdout
     closing = result.stdout.strip().splitlines()[-2:]  # what was written, and how to view it
     assert closing[0].endswith(f"wrote {out}: open report.md")
-    viewer = shutil.which("rerun") or Path(sys.executable).with_name("rerun")
+    viewer = Path(shutil.which("rerun") or Path(sys.executable).with_name("rerun"))
     assert closing[1].startswith("view it: ") and f"{out}/recording.rrd" in closing[1]
     assert Path(closing[1].split()[2]).resolve() == viewer.resolve()
     metrics = json.loads((out / "metrics.json").read_text())
