@@ -113,6 +113,7 @@ class Family:
     unit: str = "m"  # of the positions: metres, or pixels (a recording not yet scaled)
     windowing: Windowing = Windowing()  # how its scenes become windows
     train: dict[str, Any] = field(default_factory=dict)  # the learner's defaults ([train])
+    model: dict[str, Any] = field(default_factory=dict)  # and its network's ([model])
     data_root: str = ""  # the data root's folder its files are relative to ("": its own folder)
     download: str = ""  # what to put in that folder, and where to get it
 
@@ -218,7 +219,7 @@ def available_families(extra_dirs: list[Path]) -> dict[str, Path]:
 MAX_FAMILY_BYTES = 1_000_000
 VALUE_NAME = r"[a-z0-9][a-z0-9_-]*(\.[a-z0-9_-]+)*"  # e.g. "univ", "0.1": safe in file names
 _FAMILY_KEYS = {"description", "generator", "knob", "seed_offset", "knobs", "splits", "values"}
-_FAMILY_KEYS |= {"unit", "windows", "train", "data_root", "download"}
+_FAMILY_KEYS |= {"unit", "windows", "train", "model", "data_root", "download"}
 UNITS = {"m": "metres", "px": "pixels"}  # what a family's positions are in
 
 
@@ -304,6 +305,7 @@ def load_family(path: Path) -> Family:
         unit=unit,
         windowing=windowing,
         train=toml_table(raw, "train", path),
+        model=toml_table(raw, "model", path),
         data_root=data_root,
         download=str(download),
     )

@@ -130,13 +130,22 @@ class ExperimentConfig:
         """The learner's defaults the curriculum's families set (their ``[train]`` tables: the
         reproduction's schedule and sizes, say), under ``--set train.*`` and the flags; the
         families of one curriculum must agree on them."""
-        tables = {spec.family.name: spec.family.train for spec in self.specs}
+        return self._family_table("train")
+
+    @cached_property
+    def family_model(self) -> dict[str, Any]:
+        """The network's defaults the families set (their ``[model]`` tables), under
+        ``--set model.*``; the families of one curriculum must agree on them."""
+        return self._family_table("model")
+
+    def _family_table(self, table: str) -> dict[str, Any]:
+        tables = {spec.family.name: getattr(spec.family, table) for spec in self.specs}
         (first_name, first), *_ = tables.items()
-        for name, table in tables.items():
-            if table != first:
+        for name, values in tables.items():
+            if values != first:
                 raise InputError(
                     f"scenario {self.scenario!r}: families {first_name!r} and {name!r} set "
-                    "different [train] defaults; run them apart, or give every option by --set"
+                    f"different [{table}] defaults; run them apart, or give every option by --set"
                 )
         return dict(first)
 
@@ -180,9 +189,8 @@ class ExperimentConfig:
         return units.pop()
 
     def model_config(self) -> ModelConfig:
-        return build(
-            ModelConfig, {"backbone": self.backbone, **self.settings.get("model", {})}, "model"
-        )
+        given = {**self.family_model, "backbone": self.backbone, **self.settings.get("model", {})}
+        return build(ModelConfig, given, "model")
 
     def train_config(self, seed_index: int = 0) -> TrainConfig:
         """The trainer's options of the job with seed ``seed_index`` (its own seed)."""

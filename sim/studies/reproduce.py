@@ -105,6 +105,7 @@ def summarise(config: ExperimentConfig, out: Path, execution: Execution) -> dict
         "epochs": config.epochs,
         "train": {k: v for k, v in vars(config.train_config()).items() if k != "stop_above"},
         "loss_units": config.model_config().loss_units,
+        "residual": config.model_config().residual,
         "quick": config.quick,
         "measured": rows,
         "published": {name: {"minimum": m, "rows": r} for name, (m, r) in PUBLISHED.items()},
@@ -160,7 +161,9 @@ def reproduce_markdown(report: dict[str, Any]) -> str:
         f"it), variety loss best of {train['k_train']}, selection {train['select']} "
         f"(best-of-{train['select_k']} {train.get('select_metric', 'ade').upper()}), "
         f"augmentation {train['augment']}, loss in "
-        f"{report.get('loss_units', 'scale')} units."
+        f"{report.get('loss_units', 'scale')} units, decoder steps "
+        + ("changes of the last displacement" if report.get("residual", True) else "displacements")
+        + "."
         + (" **--quick: a smoke test.**" if report["quick"] else ""),
         "",
     ]
