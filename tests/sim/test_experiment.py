@@ -226,7 +226,8 @@ def test_two_runs_claiming_one_folder_at_once_get_one_claim(tmp_path):
     """Issue 26, item 6, as a race: the two claims meet at a barrier."""
     import multiprocessing
 
-    context = multiprocessing.get_context("spawn")
+    # two processes of their own, forked: a spawned one imports torch anew (3.5 CPU s each)
+    context = multiprocessing.get_context("fork")
     barrier, answers = context.Barrier(2), context.Queue()
     args = (str(tmp_path / "run"), barrier, answers)
     racers = [context.Process(target=claim_at_once, args=args) for _ in range(2)]
