@@ -282,21 +282,22 @@ def test_a_familys_train_table_is_the_learners_default_under_set_and_flags():
 
 
 def test_a_familys_model_table_sets_the_networks_defaults_under_set(tmp_path):
-    """``eth_ucy_loo``'s ``[model]`` table (STGAT's non-residual decoder) reaches the network a
-    job builds; ``--set model.KEY`` overrides it; other families keep the learner's defaults;
-    families that disagree on it alone are one line."""
+    """A family's ``[model]`` table (here a copy of ``eth_ucy_loo`` with a non-residual decoder)
+    reaches the network a job builds; ``--set model.KEY`` overrides it; other families keep the
+    learner's defaults; families that disagree on it alone are one line."""
     from sim.experiment import ExperimentConfig
 
     text = (SCENARIOS_DIR / "eth_ucy_loo.toml").read_text()
-    plain = text.split("[model]")[0] + "[values" + text.split("[values", 1)[1]  # no [model]
+    plain = text.replace("[values.eth]", "[model]\nresidual = false\n\n[values.eth]", 1)
     (tmp_path / "loo_plain.toml").write_text(plain)
     (tmp_path / "data").symlink_to(SCENARIOS_DIR / "data")  # the same recordings
-
-    config = ExperimentConfig("eth_ucy_loo_zara1", ("finetune",))
+    where = {"scenarios_dir": (tmp_path,)}
+    config = ExperimentConfig("loo_plain_zara1", ("finetune",), **where)
     assert config.model_config().residual is False
     assert config.method("finetune").build_model().backbone.decoder.residual is False
     override = {"model": {"residual": True}}
-    assert ExperimentConfig("eth_ucy_loo_zara1", ("cv",), settings=override).model_config().residual
-    assert ExperimentConfig("crowd_noise_0.1", ("cv",)).model_config().residual is True
+    config = ExperimentConfig("loo_plain_zara1", ("cv",), settings=override, **where)
+    assert config.model_config().residual is True
+    assert ExperimentConfig("eth_ucy_loo_zara1", ("cv",)).model_config().residual is True
     with pytest.raises(InputError, match="set different \\[model\\] defaults"):
-        ExperimentConfig("eth_ucy_loo_zara1+loo_plain_zara1", ("cv",), scenarios_dir=(tmp_path,))
+        ExperimentConfig("eth_ucy_loo_zara1+loo_plain_zara1", ("cv",), **where)
