@@ -18,13 +18,6 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")  # the processes tests start
 torch.set_num_threads(1)
 
 
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """The tests marked ``slow`` (10 to 35 s each) first, the rest in their order: ``make
-    test``'s workers take the list in halves and steal from the end of each other's, so a long
-    test never starts last while the other worker idles."""
-    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
-
-
 @pytest.fixture(scope="session", autouse=True)
 def private_home(tmp_path_factory):
     home = tmp_path_factory.mktemp("home")

@@ -9,7 +9,6 @@ import pytest
 EXAMPLES = Path(__file__).parents[1] / "examples"
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("script", sorted(p.name for p in EXAMPLES.glob("*.py")))
 def test_every_example_runs(tmp_path, script):
     done = subprocess.run(
@@ -38,7 +37,6 @@ def readme_snippet() -> str:
     return text.split("## From Python", 1)[1].split("```python\n", 1)[1].split("```", 1)[0]
 
 
-@pytest.mark.slow
 def test_the_readmes_snippet_runs_as_pasted_and_leaves_one_run_folder(tmp_path):
     """Issue 65: pasted into a file and run, the snippet ends and leaves exactly one run folder;
     without its guard, two jobs are one clear line before any folder or worker."""

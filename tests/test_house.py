@@ -144,7 +144,6 @@ sys.meta_path.insert(0, Blocker())
 """
 
 
-@pytest.mark.slow
 def test_the_learner_and_its_tests_load_and_train_without_the_simulators(tmp_path):
     """Every learner test module imports with the simulators, the recorder and the rest of
     the ``sim`` extra blocked (their collection; numba too: STGAT then runs its tensor

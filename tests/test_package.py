@@ -12,8 +12,6 @@ import tomllib
 import zipfile
 from pathlib import Path
 
-import pytest
-
 ROOT = Path(__file__).parents[1]
 
 
@@ -92,7 +90,6 @@ def test_every_import_of_the_package_is_a_declared_dependency():
     assert not wrong, f"imports of undeclared packages: {wrong}"
 
 
-@pytest.mark.slow
 def test_a_wheel_in_a_fresh_environment_generates_domains_anywhere(tmp_path, monkeypatch):
     """The wheel's own files and console scripts, from another folder. Its dependencies come
     from this environment (a path file; installing them again would copy 2 GB): CI's own

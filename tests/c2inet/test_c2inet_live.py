@@ -367,7 +367,6 @@ def test_offline_refines_its_components_by_eq8_not_kmeans():
     assert not torch.allclose(means["eq8"], means["kmeans"], atol=1e-3)
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(3))  # apart, so parallel test workers share them
 def test_the_mi_floor_holds_information_in_c_against_eq17s_pull_in_every_seed(seed):
     """With Eq 17 binding (the defaults: no free bits), the KL pulls Q(C|X) toward the queue's

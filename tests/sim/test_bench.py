@@ -116,7 +116,6 @@ def test_a_domain_without_validation_holds_out_the_end_of_its_training_scenes(tm
     assert task.test is task.val
 
 
-@pytest.mark.slow
 def test_the_command_ranks_every_method_and_resumes_to_the_same_leaderboard(tmp_path, capsys):
     """Three methods ranked, joint-scratch apart; seed s draws its own data, the same for every
     method; the decisive pair gets seeds until its interval is narrow or it has the most."""

@@ -82,7 +82,6 @@ def stop_at(process: subprocess.Popen, path: Path, signum: int) -> subprocess.Co
     return finish(process)
 
 
-@pytest.mark.slow
 def test_a_run_killed_or_interrupted_at_every_moment_resumes_to_the_same_metrics(
     tmp_path, reference
 ):
@@ -121,7 +120,7 @@ def test_a_run_killed_or_interrupted_at_every_moment_resumes_to_the_same_metrics
     assert not list(out.rglob("*.partial.rrd")) and not list(out.rglob(".*.tmp*"))
 
 
-@pytest.mark.parametrize("backend", ["local", pytest.param("ray", marks=pytest.mark.slow)])
+@pytest.mark.parametrize("backend", ["local", "ray"])
 def test_parallel_jobs_give_the_same_metrics(tmp_path, reference, backend, monkeypatch, capfd):
     monkeypatch.setenv("HOME", str(tmp_path))  # Ray writes its token under the home folder
     config = ExperimentConfig(**QUICK_CONFIG)

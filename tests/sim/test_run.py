@@ -297,7 +297,6 @@ def test_knob_overrides_reach_the_domains_and_the_run_card(tmp_path, capsys):
     assert cards[1]["settings"]["data"] == {"agents": 4}
 
 
-@pytest.mark.slow
 def test_loggers_write_the_numbers_of_metrics_json(tmp_path, capsys):
     out = tmp_path / "run"
     args = ["--scenario", "crowd_noise_0.1,0.2", "--quick", "--methods", "finetune", "--no-record"]
@@ -375,7 +374,6 @@ def test_loggers_write_the_numbers_of_metrics_json(tmp_path, capsys):
     assert any(r.HasField("artifact") for r in wandb_records(kept))
 
 
-@pytest.mark.slow
 def test_a_sweeps_runs_are_one_tracking_experiment_side_by_side(tmp_path):
     """A sweep is one MLflow experiment (its folder's) in one store, each variant's jobs and
     report a run of it; so is its W&B group."""
@@ -451,7 +449,6 @@ def in_private_mount(folder, options: str, command: list[str]) -> subprocess.Com
     )
 
 
-@pytest.mark.slow
 def test_a_full_or_read_only_disk_is_one_line(tmp_path):
     if subprocess.run(["unshare", "-m", "true"], capture_output=True).returncode:
         pytest.skip("this machine allows no private mount namespace")

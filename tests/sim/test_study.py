@@ -14,7 +14,6 @@ from sim.studies.paper import PRESETS
 from sim.study import main, study_parser
 
 
-@pytest.mark.slow
 def test_table4_writes_its_table_json_and_figure(tmp_path, capsys):
     argv = ["table4", "--quick", "--scenario", "crowd_radius_0.1,0.2", "--no-record"]
     assert main([*argv, "--workers", "1", "--out", str(tmp_path)]) == 0

@@ -12,7 +12,6 @@ from sim.experiment.sweep import SweepConfig, parse_grid
 from sim.sweep import main as sweep_main
 
 
-@pytest.mark.slow
 def test_a_sweep_runs_the_cross_product_and_writes_tidy_results(tmp_path):
     out = tmp_path / "sweep"
     command = [
