@@ -225,12 +225,18 @@ def job_params(job: Job, config: ExperimentConfig) -> dict[str, Any]:
     return flat_params(tree)
 
 
+# training options added since jobs were first identified, with the value that is the behaviour
+# before them: hashed only when set otherwise, so a run begun before an option resumes
+SINCE = {"select_metric": "ade"}
+
+
 def job_identity(job: Job, config: ExperimentConfig, inputs: JobInputs) -> str:
     """The SHA-256 of all a job's numbers depend on: its method and seed, the experiment's
     configuration and every task's data. Its checkpoints and result carry it, so a resume
     never mixes in the work of another job, other options or changed data files."""
     what = {"job": [job.method, job.seed_index], "config": config.to_json()}
-    what["train"] = vars(config.train_config(job.seed_index))  # a family's [train] table too
+    train = vars(config.train_config(job.seed_index))  # a family's [train] table too
+    what["train"] = {k: v for k, v in train.items() if k not in SINCE or v != SINCE[k]}
     digest = hashlib.sha256(json.dumps(what, sort_keys=True, default=str).encode())
     for task in inputs.tasks:
         digest.update(task.name.encode())

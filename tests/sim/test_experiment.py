@@ -427,6 +427,31 @@ def test_a_job_identity_follows_its_data_options_method_and_seed():
     assert same not in others and len(set(others)) == len(others)
 
 
+def test_an_option_added_since_a_job_ran_keeps_its_identity_at_the_earlier_behaviour(
+    monkeypatch,
+):
+    """``train.select_metric`` came after jobs were identified: at ``ade`` (the behaviour
+    before it) it is left out of the identity, so a run begun before it resumes (the noise
+    board's, refused until then); set otherwise, it makes another job. (Given by ``--set`` at
+    all, it is in the configuration's text, which is hashed too.)"""
+    from c2inet.data import Windows
+    from c2inet.trainer import Task
+    from sim.experiment import Job, jobs
+    from sim.experiment.curriculum import JobInputs
+
+    windows = Windows(np.zeros((2, 20, 2)), np.array([0, 1, 2]))
+    inputs = JobInputs([Task("a", windows, None, windows)], [])
+
+    def identity(**train) -> str:
+        config = ExperimentConfig("crowd_noise_0.1", ("finetune",), settings={"train": train})
+        return jobs.job_identity(Job("finetune", 0), config, inputs)
+
+    default = identity()
+    assert default != identity(select_metric="fde")
+    monkeypatch.setattr(jobs, "SINCE", {})  # hashed like every other option
+    assert identity() != default
+
+
 def test_a_damaged_or_foreign_checkpoint_is_one_line_naming_it(tmp_path):
     import torch
 
