@@ -23,6 +23,15 @@ FORMAT = 1
 SHIPPED = Path(__file__).parent / "tunings"  # the package's artefacts, one a preset
 
 
+def shown(path: Path) -> str:
+    """``path`` as a board prints it: a shipped artefact by its place in the package
+    (``sim/studies/benchmark/tunings/radius.json``), never the folder it is installed in;
+    any other file as given."""
+    if path.resolve().parent == SHIPPED.resolve():
+        return f"sim/studies/benchmark/tunings/{path.name}"
+    return str(path)
+
+
 def shipped(preset: str) -> Path | None:
     """The artefact the package ships for ``preset`` (None where it ships none)."""
     path = SHIPPED / f"{preset}.json"

@@ -19,7 +19,7 @@ from sim.experiment.sweep import layered
 from sim.experiment.trials import TRIAL_TRAIN
 from sim.experiment.tuning import SAMPLERS, TuneConfig
 from sim.scenario import parse_scenario
-from sim.studies.benchmark.artefacts import read_json, read_tuning, tunable_only
+from sim.studies.benchmark.artefacts import read_json, read_tuning, shown, tunable_only
 from sim.studies.benchmark.presets import (
     BATCH,
     RACE,
@@ -57,7 +57,7 @@ def borrowed_tuning(
             base.only(method, layered(base, settings))  # checked as --set is
         except InputError as error:
             raise InputError(f"{option} {path}: {method}: {error}") from None
-    source = {"file": str(path), "sha256": file_digest(path)}
+    source = {"file": shown(path), "sha256": file_digest(path)}
     boards = [p / "leaderboard.json" for p in (path.parent, path.parent.parent)]
     board = next((b for b in boards if b.is_file()), None)
     if isinstance(artefact.get("tune_scenario"), str):  # an artefact says it itself
