@@ -15,7 +15,8 @@ sys.path.insert(0, str(ROOT))
 
 from sim.studies.benchmark.board_markdown import boards_table  # noqa: E402
 
-BOARDS = ("radius-shipped", "density", "noise-shipped", "traffic", "eth-ucy")  # the protocol's boards
+# the protocol's boards
+BOARDS = ("radius-shipped", "density", "noise-shipped", "traffic", "eth-ucy")
 START, END = "<!-- tuned-table-2: made by scripts/tuned_table.py -->", "<!-- /tuned-table-2 -->"
 
 
