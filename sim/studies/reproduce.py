@@ -96,6 +96,7 @@ def summarise(config: ExperimentConfig, out: Path, execution: Execution) -> dict
                     rows.setdefault(method, {}).setdefault(windows, {}).setdefault(
                         minimum, []
                     ).append(cell)
+    model = config.model_config()
     return {
         "scenes": list(SCENES),
         "cpu_seconds": job_seconds(config, out),
@@ -104,8 +105,8 @@ def summarise(config: ExperimentConfig, out: Path, execution: Execution) -> dict
         "k": config.k,
         "epochs": config.epochs,
         "train": {k: v for k, v in vars(config.train_config()).items() if k != "stop_above"},
-        "loss_units": config.model_config().loss_units,
-        "residual": config.model_config().residual,
+        "loss_units": model.loss_units,
+        "residual": model.residual,
         "quick": config.quick,
         "measured": rows,
         "published": {name: {"minimum": m, "rows": r} for name, (m, r) in PUBLISHED.items()},

@@ -96,9 +96,9 @@ def test_a_task_keeps_its_validation_best_epoch(monkeypatch):
     assert selected_epochs(selected) == [1, 1]
     assert [r["select_fde"] for r in selected.history] == planted["fde"] * 2
     assert [id(w) for w in scored] == [id(tasks[0].val)] * 3 + [id(tasks[1].val)] * 3
-    assert selected_epochs(run(3, "val", "fde")) == [2, 2]
-    assert selected_epochs(run(3, "val", "ade+fde")) == [2, 2]  # 0.9 against 1.0 and 1.4
     by_fde = run(3, "val", "fde")
+    assert selected_epochs(by_fde) == [2, 2]
+    assert selected_epochs(run(3, "val", "ade+fde")) == [2, 2]  # 0.9 against 1.0 and 1.4
     last = run(3, "last")
     np.testing.assert_array_equal(by_fde.matrices["ade"], last.matrices["ade"])
     assert not np.array_equal(selected.matrices["ade"], last.matrices["ade"])  # live

@@ -14,7 +14,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import torch
 
 from c2inet.errors import InputError
 from c2inet.files import write_atomic
@@ -585,15 +584,10 @@ def test_the_estimate_times_every_task_on_its_own_scenes():
     )
     names = {"alike": ["a", "b", "c"], "unlike": ["a", "b", "big"]}
     method_seconds(config, "slow", [Task("a", windows, None, windows)], warm_up=True)  # imports
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)  # as a run times it: no second thread's spinning in the CPU time
-    try:
-        cost = {
-            kind: method_seconds(config, "slow", [Task(n, windows, None, windows) for n in tasks])
-            for kind, tasks in names.items()
-        }
-    finally:
-        torch.set_num_threads(threads)
+    cost = {
+        kind: method_seconds(config, "slow", [Task(n, windows, None, windows) for n in tasks])
+        for kind, tasks in names.items()
+    }
     # 4 steps an epoch, 2 epochs: 8 slow steps on the third task alone
     assert cost["unlike"] - cost["alike"] > 8 * SLOW * 0.8
 
