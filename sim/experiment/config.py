@@ -64,6 +64,7 @@ class ExperimentConfig:
         if not self.specs:  # parsed here, once: a bad scenario or data override fails now
             raise InputError(f"scenario {self.scenario!r}: no domain")
         family = self.family_train
+        self.family_model  # noqa: B018  (a family's bad [model] key names its file, now)
         epochs, k = (2, 5) if self.quick else (family.get("epochs", 20), family.get("k", 20))
         fill(self, "epochs", self.epochs if self.epochs is not None else epochs)
         fill(self, "k", self.k if self.k is not None else k)
@@ -139,6 +140,9 @@ class ExperimentConfig:
         return self._family_table("model")
 
     def _family_table(self, table: str) -> dict[str, Any]:
+        options = {"train": TrainConfig, "model": ModelConfig}[table]
+        for spec in self.specs:  # a bad key names the family's file, not --set
+            build(options, getattr(spec.family, table), f"{spec.family.path} [{table}]")
         tables = {spec.family.name: getattr(spec.family, table) for spec in self.specs}
         (first_name, first), *_ = tables.items()
         for name, values in tables.items():

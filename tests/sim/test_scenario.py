@@ -301,3 +301,6 @@ def test_a_familys_model_table_sets_the_networks_defaults_under_set(tmp_path):
     assert ExperimentConfig("eth_ucy_loo_zara1", ("cv",)).model_config().residual is True
     with pytest.raises(InputError, match="set different \\[model\\] defaults"):
         ExperimentConfig("eth_ucy_loo_zara1+loo_plain_zara1", ("cv",), **where)
+    (tmp_path / "loo_bad.toml").write_text(plain.replace("residual = false", "resdual = false"))
+    with pytest.raises(InputError, match="loo_bad.toml \\[model\\]: unknown key 'resdual'"):
+        ExperimentConfig("loo_bad_zara1", ("cv",), **where)  # its file named, not --set
