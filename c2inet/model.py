@@ -67,12 +67,16 @@ class Predictor(nn.Module):
         """Normalised future displacements (12, S, N, 2) from conditions (S, N, D)."""
         return self.backbone.decode(cond, batch.last_rel)
 
-    def noise(self, samples: int, agents: int) -> torch.Tensor:
-        """The N(0, I) part of ``samples`` conditions of ``agents`` agents, (S, N, latent)."""
-        return torch.randn(samples, agents, self.config.latent_dim, device=model_device(self))
+    def noise(self, samples: int, batch: Batch) -> torch.Tensor:
+        """The N(0, I) part of ``samples`` conditions of the batch's agents, (S, N, latent): a
+        draw per agent, or per scene (``noise_per``) shared by the scene's agents."""
+        device, size = model_device(self), self.config.latent_dim
+        if self.config.noise_per == "scene":
+            return torch.randn(samples, batch.num_scenes, size, device=device)[:, batch.scene_of]
+        return torch.randn(samples, batch.obs.shape[1], size, device=device)
 
-    def _context_with_noise(self, context: torch.Tensor, samples: int) -> torch.Tensor:
-        noise = self.noise(samples, context.shape[0])
+    def _context_with_noise(self, context: torch.Tensor, samples: int, batch: Batch):
+        noise = self.noise(samples, batch)
         return torch.cat([context.expand(samples, *context.shape), noise], -1)
 
     def nll(self, batch: Batch, pred_rel: torch.Tensor) -> torch.Tensor:
@@ -85,7 +89,7 @@ class Predictor(nn.Module):
 
     def loss(self, batch: Batch, k_train: int = 1) -> LossOutput:
         """The training loss; with ``k_train`` > 1 the variety loss over that many samples."""
-        cond = self._context_with_noise(self.context(batch), k_train)
+        cond = self._context_with_noise(self.context(batch), k_train, batch)
         pred = self.decode(batch, cond)
         loss = variety_loss(self.nll(batch, pred), batch)
         return LossOutput(loss, {"nll": loss.detach()}, pred)
@@ -119,7 +123,7 @@ class Predictor(nn.Module):
     @torch.no_grad()
     def predict(self, batch: Batch, samples: int) -> torch.Tensor:
         """K sampled futures as absolute positions in metres, (K, 12, N, 2)."""
-        cond = self._context_with_noise(self.context(batch), samples)
+        cond = self._context_with_noise(self.context(batch), samples, batch)
         return to_positions(batch, self.decode(batch, cond))
 
     def evaluation_variants(self, task: int | None = None) -> dict[str, dict]:

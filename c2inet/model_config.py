@@ -43,6 +43,10 @@ class ModelConfig:
     # network is built (auto: compiled on the CPU, tensor elsewhere) and written to the run card
     kernels: str = "auto"
     latent_dim: int = 16  # noise size of the baselines; C2INet uses z_dim + c_dim
+    # the baselines' noise: one draw per agent, or one per scene shared by its agents (STGAT's
+    # and Social-GAN's "global" noise, whose sample moves a whole scene, as a best-of-K per scene
+    # scores it)
+    noise_per: str = "agent"
     z_dim: int = 8
     c_dim: int = 8
     likelihood_std: float = 0.1  # std of the Gaussian likelihood, in units of the scene scale
@@ -85,6 +89,7 @@ class ModelConfig:
         choose(self, "kernels", KERNEL_MODES)
         choose(self, "c_source", C_SOURCES)
         choose(self, "c_per", ("agent", "scene"))
+        choose(self, "noise_per", ("agent", "scene"))
         choose(self, "decoder_input", DECODER_INPUTS)
         choose(self, "past_from", PAST_INPUTS)
         choose(self, "loss_units", ("scale", "metres"))

@@ -77,11 +77,11 @@ class DERPP(Method):
         if not self.scenes:
             return super().step_loss(ctx, batch, k_train)
         model, own = ctx.model, batch.obs.shape[1]
-        noise = model.noise(k_train, own)
+        noise = model.noise(k_train, batch)
         replay, stored = self._draw(ctx)
         variety = self.options.replay_loss == "variety"
         if variety:
-            noise = torch.cat([noise, model.noise(k_train, replay.obs.shape[1])], dim=1)
+            noise = torch.cat([noise, model.noise(k_train, replay)], dim=1)
         joined = Batch.concat([batch, replay])
         samples, point = model.samples_and_point(joined, noise, slice(own, None))
         replayed = samples[:, :, own:] if variety else point[:, None]

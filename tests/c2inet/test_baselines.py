@@ -186,7 +186,7 @@ def test_one_pass_gives_the_samples_and_the_point_of_separate_passes():
     model, batch = Predictor(ModelConfig()), make_batch(turners(0.3, 4, 0))
     agents = batch.obs.shape[1]
     torch.manual_seed(1)
-    samples, point = model.samples_and_point(batch, model.noise(3, agents), slice(2, None))
+    samples, point = model.samples_and_point(batch, model.noise(3, batch), slice(2, None))
     assert samples.shape == (12, 3, agents, 2) and point.shape == (12, agents - 2, 2)
     fused = torch.autograd.grad(samples.sum() + point.square().sum(), model.parameters())
     torch.manual_seed(1)

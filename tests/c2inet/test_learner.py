@@ -47,6 +47,26 @@ def test_a_batch_is_frozen_and_derives_its_displacements_and_scales_once():
     torch.testing.assert_close(batch.scale, fresh.scale, rtol=0, atol=0)
 
 
+def test_scene_noise_moves_a_scenes_agents_together_and_agent_noise_each_alone():
+    """``noise_per = scene`` (STGAT's global noise) gives a scene's agents one draw a sample,
+    so a sample moves the scene as a whole; the default draws each agent's own, as before."""
+    batch = make_batch(toy_windows())
+    for per in ("agent", "scene"):
+        model = Predictor(ModelConfig(noise_per=per))
+        torch.manual_seed(0)
+        noise = model.noise(3, batch)
+        assert noise.shape == (3, len(batch.scene_of), 16)
+        first, second = batch.scene_start[1:3]  # scene 1's agents (it has several)
+        assert second - first > 1
+        same = torch.equal(noise[:, first], noise[:, second - 1])
+        assert same == (per == "scene")
+        if per == "agent":  # the default's draws are the ones it always drew
+            torch.manual_seed(0)
+            assert torch.equal(noise, torch.randn(3, len(batch.scene_of), 16))
+    with pytest.raises(ValueError, match="noise_per"):
+        ModelConfig(noise_per="world")
+
+
 def test_joined_batches_are_the_batch_of_their_scenes():
     """``Batch.concat`` (DER++'s one pass over its step and its replay) equals the batch made
     from both parts' scenes at once, agent offsets, scene indices and padding included."""
