@@ -28,6 +28,15 @@ from c2inet.gaussians import (
     minibatch_mutual_information,
     responsibilities,
 )
+from c2inet.lazy import lazy_module
+
+# scikit-learn (a second of import) loads where a probe first runs, not in every process that
+# imports the trainer
+sk_linear = lazy_module("sklearn.linear_model")
+sk_metrics = lazy_module("sklearn.metrics")
+sk_selection = lazy_module("sklearn.model_selection")
+sk_pipeline = lazy_module("sklearn.pipeline")
+sk_preprocessing = lazy_module("sklearn.preprocessing")
 
 PROBE_FOLDS = 4
 MI_INPUTS = 2000  # inputs of the MI estimate (its cost grows with their square)
@@ -63,18 +72,14 @@ def observed_features(windows: Windows) -> np.ndarray:
     return np.nan_to_num(features, nan=-1.0, posinf=-1.0)
 
 
-# scikit-learn is imported where a probe runs: it is a third of the project's import time, which
-# every command line pays, bad input and --help included.
-
-
 def _folds(labels: np.ndarray, seed: int):
     """Stratified folds, as many as the rarest class allows (None below 2 classes or 2 each)."""
-    from sklearn.model_selection import StratifiedKFold
-
     classes, counts = np.unique(labels, return_counts=True)
     if len(classes) < 2 or counts.min() < 2:
         return None
-    return StratifiedKFold(min(PROBE_FOLDS, counts.min()), shuffle=True, random_state=seed)
+    return sk_selection.StratifiedKFold(
+        min(PROBE_FOLDS, counts.min()), shuffle=True, random_state=seed
+    )
 
 
 def _probeable(features: np.ndarray) -> bool:
@@ -91,13 +96,10 @@ def probe_accuracy(features: np.ndarray, labels: np.ndarray, seed: int = 0) -> f
     folds = _folds(labels, seed)
     if folds is None or not _probeable(features):
         return None
-    from sklearn.linear_model import LogisticRegression
-    from sklearn.model_selection import cross_val_predict
-    from sklearn.pipeline import make_pipeline
-    from sklearn.preprocessing import StandardScaler
-
-    probe = make_pipeline(StandardScaler(), LogisticRegression(max_iter=1000))
-    predicted = cross_val_predict(probe, features, labels, cv=folds)
+    probe = sk_pipeline.make_pipeline(
+        sk_preprocessing.StandardScaler(), sk_linear.LogisticRegression(max_iter=1000)
+    )
+    predicted = sk_selection.cross_val_predict(probe, features, labels, cv=folds)
     return float((predicted == labels).mean())
 
 
@@ -108,15 +110,11 @@ def knob_r2(features: np.ndarray, values: np.ndarray, seed: int = 0) -> float | 
     folds = _folds(labels, seed)
     if folds is None or not _probeable(features):
         return None
-    from sklearn.linear_model import Ridge
-    from sklearn.metrics import r2_score
-    from sklearn.model_selection import cross_val_predict
-    from sklearn.pipeline import make_pipeline
-    from sklearn.preprocessing import StandardScaler
-
-    model = make_pipeline(StandardScaler(), Ridge(alpha=1.0))
-    predicted = cross_val_predict(model, features, values, cv=folds.split(features, labels))
-    return float(r2_score(values, predicted))
+    model = sk_pipeline.make_pipeline(sk_preprocessing.StandardScaler(), sk_linear.Ridge(alpha=1.0))
+    predicted = sk_selection.cross_val_predict(
+        model, features, values, cv=folds.split(features, labels)
+    )
+    return float(sk_metrics.r2_score(values, predicted))
 
 
 def mutual_information(mean: torch.Tensor, logvar: torch.Tensor, samples: int = 4) -> float:
@@ -218,10 +216,8 @@ def _confounder(model, batches, labels, values, seed) -> dict[str, Any]:
     if model.c_per_scene:
         owner_task = np.repeat(owner_task, counts)
     if tasks > 1:
-        from sklearn.metrics import adjusted_rand_score, normalized_mutual_info_score
-
-        out["ari"] = _rounded(adjusted_rand_score(domain, owner_task))
-        out["nmi"] = _rounded(normalized_mutual_info_score(domain, owner_task))
+        out["ari"] = _rounded(sk_metrics.adjusted_rand_score(domain, owner_task))
+        out["nmi"] = _rounded(sk_metrics.normalized_mutual_info_score(domain, owner_task))
     if all(v is not None for v in values):
         knob = np.array([values[i] for i in labels], dtype=np.float64)
         out["knob_r2"] = _rounded(knob_r2(c_scene.cpu().numpy(), knob, seed))

@@ -14,6 +14,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from c2inet.lazy import lazy_module
+
+# a second of import, paid where a table has seeds, not by every command that imports this
+stats = lazy_module("scipy.stats")
+multitest = lazy_module("statsmodels.stats.multitest")
+
 LEVEL = 0.95  # of every interval
 ALPHA = 0.05  # a paired difference is marked significant below this p-value
 TIE = 1e-9  # differences closer than this (metres) are rounding, not a spread
@@ -24,8 +30,6 @@ def interval(values: np.ndarray | list[float], level: float = LEVEL) -> tuple[fl
     values = np.asarray(values, dtype=float)
     if len(values) < 2:
         return None
-    from scipy import stats  # a second of import: only where a table has seeds
-
     mean, sem = values.mean(), stats.sem(values)
     if sem == 0:
         return float(mean), float(mean)
@@ -58,8 +62,6 @@ def paired(method: list[float], reference: list[float]) -> Paired:
         if np.ptp(difference) <= TIE:  # no spread: t is undefined, the sign is sure
             p_value = 1.0 if abs(difference[0]) <= TIE else 0.0
         else:
-            from scipy import stats
-
             p_value = float(stats.ttest_rel(a, b).pvalue)
     return Paired(float(difference.mean()), interval(difference), p_value)
 
@@ -71,9 +73,8 @@ def holm(p_values: list[float | None]) -> list[float | None]:
     adjusted: list[float | None] = [None] * len(p_values)
     if not tested:
         return adjusted
-    from statsmodels.stats.multitest import multipletests
-
-    _, corrected, _, _ = multipletests([p_values[i] for i in tested], ALPHA, method="holm")
+    tests = [p_values[i] for i in tested]
+    _, corrected, _, _ = multitest.multipletests(tests, ALPHA, method="holm")
     for i, p in zip(tested, corrected, strict=True):
         adjusted[i] = float(p)
     return adjusted
@@ -98,8 +99,6 @@ def seeds_to_narrow(
         return n
     if n < least:
         return least
-    from scipy import stats
-
     sd = float(values.std(ddof=1))
 
     def projected(size: int) -> float:  # the interval's width at ``size`` seeds, this spread
@@ -121,8 +120,6 @@ def sign_flip(differences: np.ndarray | list[float]) -> float | None:
     values = np.asarray(differences, dtype=float)
     if len(values) < 2 or (np.ptp(values) <= TIE and abs(values[0]) <= TIE):
         return None
-    from scipy import stats
-
     exact = len(values) <= 16
     result = stats.permutation_test(
         (values,),
@@ -159,8 +156,6 @@ def over_tunings(differences: np.ndarray | list[list[float]]) -> OverTunings:
     d = np.asarray(differences, dtype=float)
     if d.ndim != 2 or d.shape[0] < 2 or d.shape[1] < 2:
         raise ValueError(f"over tunings: expected at least 2 tunings x 2 seeds, got {d.shape}")
-    from scipy import stats
-
     t, s = d.shape
     grand = d.mean()
     ms_t = s * ((d.mean(axis=1) - grand) ** 2).sum() / (t - 1)
@@ -186,8 +181,6 @@ def detectable(differences: list[list[float]], power: float = 0.8) -> float | No
     spreads = [float(np.std(d, ddof=1)) for d in differences if len(d) >= 2]
     if not spreads:
         return None
-    from scipy import stats
-
     n = min(len(d) for d in differences if len(d) >= 2)
     t = stats.t.ppf(1 - ALPHA / 2, n - 1) + stats.t.ppf(power, n - 1)
     return float(t * np.median(spreads) / np.sqrt(n))

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from c2inet.errors import InputError, did_you_mean
+from c2inet.lazy import lazy_module
 from sim.config_file import config_defaults
 from sim.experiment.backends import BACKENDS
 from sim.experiment.defaults import DEFAULT_METHODS
@@ -19,6 +20,15 @@ from viz.cli import bounded_float, bounded_int, config_path, plain_parser
 
 if TYPE_CHECKING:
     from sim.experiment.config import Execution
+
+# loaded on first use: a command that stops at bad input or answers --help does not pay for it
+backbones_base = lazy_module("c2inet.backbones.base")
+methods_base = lazy_module("c2inet.methods.base")
+engine_config = lazy_module("sim.experiment.config")
+generators_base = lazy_module("sim.generators.base")
+studies_base = lazy_module("sim.studies.base")
+bench_presets = lazy_module("sim.studies.benchmark.presets")
+viz_loggers = lazy_module("viz.loggers")
 
 SCENARIO_HELP = """scenarios: FAMILY_VALUES, parts joined by '+'; VALUES is a..b (step from the
 decimals of a), a..b:step, or v1,v2,... (names for real-data families), e.g.
@@ -174,20 +184,13 @@ def listing(what: list[str], extra_dirs: list[Path]) -> str:
 
 def registries() -> dict[str, Any]:
     """Every extension point's registry by the word ``--list`` takes."""
-    from c2inet.backbones.base import REGISTRY as backbones
-    from c2inet.methods.base import REGISTRY as methods
-    from sim.generators.base import REGISTRY as generators
-    from sim.studies.base import REGISTRY as studies
-    from sim.studies.benchmark.presets import REGISTRY as presets
-    from viz.loggers import REGISTRY as loggers
-
     return {
-        "methods": methods,
-        "backbones": backbones,
-        "generators": generators,
-        "studies": studies,
-        "loggers": loggers,
-        "presets": presets,
+        "methods": methods_base.REGISTRY,
+        "backbones": backbones_base.REGISTRY,
+        "generators": generators_base.REGISTRY,
+        "studies": studies_base.REGISTRY,
+        "loggers": viz_loggers.REGISTRY,
+        "presets": bench_presets.REGISTRY,
     }
 
 
@@ -273,9 +276,7 @@ def experiment_options(args: argparse.Namespace, grid: bool = False) -> dict:
     (``grid``: ``--set`` is a sweep's grid, not the configuration's settings). Settings of a
     ``--config`` file come first; ``--set`` overrides them key by key."""
     settings = {scope: dict(values) for scope, values in args.config_settings.items()}
-    from sim.experiment.config import parse_settings  # the learner's options: loaded for work
-
-    for scope, values in ({} if grid else parse_settings(args.set)).items():
+    for scope, values in ({} if grid else engine_config.parse_settings(args.set)).items():
         settings.setdefault(scope, {}).update(values)
     return {
         "methods": method_names(args.methods),
@@ -295,9 +296,7 @@ def experiment_options(args: argparse.Namespace, grid: bool = False) -> dict:
 def method_names(text: str) -> tuple[str, ...]:
     """``--methods``: comma-separated names, or ``all`` for every registered method."""
     if text.strip() == "all":
-        from c2inet.methods.base import discover
-
-        return tuple(sorted(discover()))
+        return tuple(sorted(methods_base.discover()))
     return tuple(name.strip() for name in text.split(",") if name.strip())
 
 
@@ -316,9 +315,9 @@ def execution_of(args: argparse.Namespace) -> Execution:
     )
     options = {name: getattr(args, name) for name in names if hasattr(args, name)}
     loggers = getattr(args, "logger", "")
-    from sim.experiment.config import Execution
-
-    return Execution(**options, loggers=tuple(n.strip() for n in loggers.split(",") if n.strip()))
+    return engine_config.Execution(
+        **options, loggers=tuple(n.strip() for n in loggers.split(",") if n.strip())
+    )
 
 
 def command_name(module: str) -> str:

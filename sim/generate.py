@@ -12,11 +12,17 @@ from pathlib import Path
 
 from c2inet.errors import InputError
 from c2inet.files import file_digest, writable_folder, write_text_atomic
+from c2inet.lazy import lazy_module
+from sim import io
 from sim.cli import add_workers, parse, parser
 from sim.data import SPLITS, Domain
 from sim.progress import progress_bar
 from sim.scenario import parse_scenario
 from viz.cli import guarded
+
+# loaded on first use: a command that stops at bad input or answers --help does not pay for it
+building = lazy_module("sim.domains")  # the simulators load once there is work
+engine_config = lazy_module("sim.experiment.config")
 
 STAT_COLUMNS = ("mean_speed", "min_separation", "heading_change", "density", "overlaps")
 
@@ -46,8 +52,6 @@ WRITERS = ("ethucy", "npz", "parquet")  # the formats, each by sim.io's write_FO
 
 def write_domain(format: str, domain: Domain, out: Path) -> None:
     """``domain`` in ``format`` where :data:`WRITTEN` says (pyarrow loads only to write)."""
-    from sim import io
-
     getattr(io, f"write_{format}")(domain, WRITTEN[format](out, domain.name))
 
 
@@ -122,10 +126,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.out is None:
         p.error("the following arguments are required: --out")
-    from sim.domains import build_domain  # the simulators load once there is work
-    from sim.experiment.config import parse_settings
-
-    settings = parse_settings(args.set)
+    settings = engine_config.parse_settings(args.set)
     for scope in set(settings) - {"data"}:
         raise InputError(f"--set {scope}.*: generate takes only data.KNOB=VALUE")
     # a --config file's [settings.data] as sim.run reads it, under the flags; its learner's
@@ -140,7 +141,7 @@ def main(argv: list[str] | None = None) -> int:
     writable_folder(args.out, "--out")
     domains, written = [], {}
     for spec in progress_bar(curriculum, desc="domains", unit="domain"):
-        domain = build_domain(
+        domain = building.build_domain(
             spec, args.seed, workers=args.workers, memory_budget=args.memory_budget
         )
         write_domain(args.format, domain, args.out)

@@ -7,21 +7,20 @@ import io
 import json
 import zipfile
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from c2inet.errors import InputError
 from c2inet.files import write_atomic, write_text_atomic
+from c2inet.lazy import lazy_module
 from sim.data import SPLITS, Domain, Scene
 
-if TYPE_CHECKING:  # Arrow loads where a domain is written or read: a command's --help needs none
-    import pyarrow as pa
+# Arrow loads where a domain is written or read: a command's --help needs none
+pa = lazy_module("pyarrow")
+pq = lazy_module("pyarrow.parquet")
 
 
 def _table(domain: Domain) -> pa.Table:
-    import pyarrow as pa
-
     columns: dict[str, list[np.ndarray]] = {
         k: [] for k in ("split", "scene", "frame", "agent", "x", "y")
     }
@@ -64,17 +63,12 @@ def _checksum(arrays: dict[str, np.ndarray], meta: dict) -> str:
 
 
 def write_parquet(domain: Domain, path: Path) -> None:
-    import pyarrow.parquet as pq
-
     table = _table(domain)
     write_atomic(path, lambda tmp: pq.write_table(table, tmp, compression="zstd"))
 
 
 def read_parquet(path: Path) -> Domain:
     """Read a domain written by :func:`write_parquet`."""
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
     try:
         table = pq.read_table(path)
         meta = json.loads(table.schema.metadata[b"domain"])

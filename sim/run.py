@@ -12,6 +12,7 @@ import sys
 import time
 from pathlib import Path
 
+from c2inet.lazy import lazy_module
 from sim.cli import (
     INTERRUPTED,
     add_experiment_options,
@@ -23,6 +24,13 @@ from sim.cli import (
 from sim.config_file import resolved_config
 from viz.cli import guarded
 from viz.serve import how_to_open
+
+# loaded on first use: a command that stops at bad input or answers --help does not pay for it
+report = lazy_module("c2inet.report")
+engine = lazy_module("sim.experiment")
+folders = lazy_module("sim.experiment.folders")
+scenario_language = lazy_module("sim.scenario")
+artefacts = lazy_module("sim.studies.benchmark.artefacts")
 
 EXAMPLES = """\
   python -m sim.run --scenario crowd_noise_0.1..0.6
@@ -37,11 +45,8 @@ def with_tuning(args, options: dict) -> dict:
     """``--tuned-from``: a tuning's settings (and a preset's board sizes) under the user's own."""
     if not args.tuned_from:
         return options
-    from sim.scenario import parse_scenario
-    from sim.studies.benchmark.artefacts import tuned_settings
-
-    tasks = len(parse_scenario(args.scenario, list(options["scenarios_dir"])))
-    tuned, source = tuned_settings(args.tuned_from, options["methods"], tasks)
+    tasks = len(scenario_language.parse_scenario(args.scenario, list(options["scenarios_dir"])))
+    tuned, source = artefacts.tuned_settings(args.tuned_from, options["methods"], tasks)
     given = options["settings"]
     settings = {
         scope: {**tuned.get(scope, {}), **given.get(scope, {})} for scope in {*tuned, *given}
@@ -77,19 +82,15 @@ def main(argv: list[str] | None = None) -> int:
     if args is None:
         return 0
     # the learner and the engine load once there is work: --help and a typo answer at once
-    from c2inet.report import caption, text_table
-    from sim.experiment import ExperimentConfig, run_experiment
-    from sim.experiment.folders import output_folder
-
-    config = ExperimentConfig(args.scenario, **with_tuning(args, experiment_options(args)))
+    config = engine.ExperimentConfig(args.scenario, **with_tuning(args, experiment_options(args)))
     execution = execution_of(args)
     if args.print_config:
         print(resolved_config(config, execution), end="")
         return 0
-    out = output_folder(args.scenario, args.out, args.resume)
+    out = folders.output_folder(args.scenario, args.out, args.resume)
     started = time.perf_counter()
     try:
-        metrics = run_experiment(
+        metrics = engine.run_experiment(
             config, out, execution, args.resume, args.overwrite, [*p.prog.split(), *argv]
         )
     except KeyboardInterrupt:
@@ -101,8 +102,8 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return INTERRUPTED
-    print(caption(config.k, config.seeds, unit=config.unit))
-    print(text_table(metrics["methods"], metrics["labels"]))
+    print(report.caption(config.k, config.seeds, unit=config.unit))
+    print(report.text_table(metrics["methods"], metrics["labels"]))
     print(f"wall time {time.perf_counter() - started:.0f} s; wrote {out}: open report.md")
     if config.record:
         print(f"view it: {how_to_open(out / 'recording.rrd')}")

@@ -4,7 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from c2inet.lazy import lazy_module
 from sim.data import Scene
+
+# loaded on first use: a command that stops at bad input or answers --help does not pay for it
+spatial = lazy_module("scipy.spatial")
 
 MIN_STEP = 0.02  # m per frame below which an agent counts as standing (no heading)
 DENSE_AGENTS = 64  # up to this many agents a scene's pairs are taken all at once
@@ -80,14 +84,12 @@ def _dense_pairs(positions: np.ndarray, contact: float | None) -> tuple[float, i
 
 
 def _tree_pairs(positions: np.ndarray, contact: float | None) -> tuple[float, int]:
-    from scipy.spatial import cKDTree  # here: the studies that list these names load no scipy
-
     smallest, overlaps = np.inf, 0
     for frame in positions:
         points = frame[np.isfinite(frame[:, 0])]
         if len(points) < 2:
             continue
-        tree = cKDTree(points)
+        tree = spatial.cKDTree(points)
         distance, _ = tree.query(points, k=2)
         smallest = min(smallest, float(distance[:, 1].min()))
         if contact is not None:

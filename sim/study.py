@@ -11,6 +11,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from c2inet.lazy import lazy_module
 from sim.cli import (
     add_experiment_options,
     execution_of,
@@ -21,6 +22,10 @@ from sim.cli import (
 )
 from sim.studies.base import Study, discover, get_study
 from viz.cli import guarded
+
+# loaded on first use: a command that stops at bad input or answers --help does not pay for it
+engine = lazy_module("sim.experiment")
+folders = lazy_module("sim.experiment.folders")
 
 
 def listing() -> str:
@@ -50,17 +55,14 @@ def run_study(study: Study, argv: list[str], prog: str | None = None) -> int:
     args = parse(p, argv, study.scenario_required)
     if args is None:
         return 0
-    from sim.experiment import ExperimentConfig  # the engine loads once there is work
-    from sim.experiment.folders import claim
-
     options = experiment_options(args)
     if study.one_method and len(options["methods"]) != 1:
         p.error(f"--methods: {study.name} trains one method, got {args.methods!r}")
-    config = ExperimentConfig(study.scenario_of(args), **options)
+    config = engine.ExperimentConfig(study.scenario_of(args), **options)
     execution = execution_of(args)
     out = args.out or study.default_out(args)
     if not study.sweeps:  # a study of sweeps claims its folder as a sweep
-        claim(out, config, execution, args.resume, args.overwrite)
+        folders.claim(out, config, execution, args.resume, args.overwrite)
     try:
         report = study.run(args, config, execution, out, [*p.prog.split(), *argv])
     except KeyboardInterrupt:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from c2inet.lazy import lazy_module
 from sim.cli import (
     add_experiment_options,
     execution_of,
@@ -21,6 +22,10 @@ from sim.cli import (
     parser,
 )
 from viz.cli import guarded
+
+# loaded on first use: a command that stops at bad input or answers --help does not pay for it
+engine = lazy_module("sim.experiment")
+sweeping = lazy_module("sim.experiment.sweep")
 
 
 @guarded
@@ -39,13 +44,10 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.out is None:
         p.error("the following arguments are required: --out")
-    from sim.experiment import ExperimentConfig  # the engine loads once there is work
-    from sim.experiment.sweep import SweepConfig, combined_report, parse_grid, run_sweep
-
-    base = ExperimentConfig(args.scenario[0], **experiment_options(args, grid=True))
-    sweep = SweepConfig(base, tuple(args.scenario), parse_grid(args.set))
+    base = engine.ExperimentConfig(args.scenario[0], **experiment_options(args, grid=True))
+    sweep = sweeping.SweepConfig(base, tuple(args.scenario), sweeping.parse_grid(args.set))
     try:
-        entries = run_sweep(
+        entries = sweeping.run_sweep(
             sweep,
             args.out,
             execution_of(args),
@@ -55,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
         )
     except KeyboardInterrupt:
         return interrupted(args.out)
-    print(combined_report(entries))
+    print(sweeping.combined_report(entries))
     print(f"wrote {args.out}: open report.md; every number in results.parquet", file=sys.stderr)
     return 0
 

@@ -18,10 +18,23 @@ FORBIDDEN = {
 }
 
 
+def lazy_modules(tree: ast.AST) -> set[str]:
+    """The modules a file declares with ``lazy_module("NAME")``: imports, paid on first use."""
+    return {
+        node.args[0].value
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Call)
+        and getattr(node.func, "id", None) == "lazy_module"
+        and node.args
+        and isinstance(node.args[0], ast.Constant)
+    }
+
+
 def imported(path: Path) -> set[str]:
-    """Top-level names of every module ``path`` imports, wherever in the file."""
-    names = set()
-    for node in ast.walk(ast.parse(path.read_text())):
+    """Top-level names of every module ``path`` imports, wherever in the file, lazily too."""
+    tree = ast.parse(path.read_text())
+    names = {name.split(".")[0] for name in lazy_modules(tree)}
+    for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             names |= {alias.name.split(".")[0] for alias in node.names}
         elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
@@ -79,9 +92,10 @@ def floor(module: str) -> int:
 
 def sim_imports(path: Path) -> set[str]:
     """The ``sim`` modules ``path`` imports, wherever in the file (a name imported from a
-    package that is a module of it counts as that module)."""
-    found = set()
-    for node in ast.walk(ast.parse(path.read_text())):
+    package that is a module of it counts as that module; a lazy module counts)."""
+    tree = ast.parse(path.read_text())
+    found = {name for name in lazy_modules(tree) if name.split(".")[0] == "sim"}
+    for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             found |= {a.name for a in node.names if a.name.split(".")[0] == "sim"}
         elif isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("sim"):
@@ -102,6 +116,7 @@ def sim_graph() -> dict[str, set[str]]:
 def test_sim_floors_import_only_downwards():
     graph = sim_graph()
     assert {m for m in graph if floor(m) == 1} >= {"sim.experiment.outputs", "sim.experiment.sweep"}
+    assert "sim.experiment.sweep" in graph["sim.studies.reproduce"]  # declared lazily there
     for module, imports in sorted(graph.items()):
         for target in sorted(imports):
             assert floor(target) <= floor(module), (
@@ -223,3 +238,33 @@ def test_no_module_or_function_outgrows_the_size_bars():
         for problem in oversized(path.read_text(), str(path.relative_to(ROOT)))
     ]
     assert not found, found
+
+
+FUNCTION_IMPORTS = 20  # issue 63: 133 then; these are optional extras, PEP 562 and the like
+
+
+def function_imports(source: str, where: str) -> list[str]:
+    """``where:LINE function`` for each import inside a function body of ``source``."""
+    found = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+            found += [
+                f"{where}:{sub.lineno} {node.name}"
+                for sub in ast.walk(node)
+                if isinstance(sub, ast.Import | ast.ImportFrom)
+            ]
+    return found
+
+
+def test_dependencies_are_declared_at_the_top_of_their_module():
+    """A module's imports stand at its top (heavy ones as ``lazy_module``, paid on first use);
+    inside a function only what must be (an optional extra's check, PEP 562's ``__getattr__``),
+    and the check itself counts a planted one."""
+    assert function_imports("def f():\n    import json\n", "planted") == ["planted:2 f"]
+    found = [
+        problem
+        for package in ("c2inet", "sim", "viz")
+        for path in sorted((ROOT / package).rglob("*.py"))
+        for problem in function_imports(path.read_text(), str(path.relative_to(ROOT)))
+    ]
+    assert len(found) <= FUNCTION_IMPORTS, "\n".join(found)

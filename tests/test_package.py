@@ -12,6 +12,8 @@ import tomllib
 import zipfile
 from pathlib import Path
 
+from test_house import lazy_modules
+
 ROOT = Path(__file__).parents[1]
 
 
@@ -70,23 +72,23 @@ def test_every_import_of_the_package_is_a_declared_dependency():
             for statement in node.body
             for inner in ast.walk(statement)
         }
+        imports = []  # (module, imported at module level); a lazy module is paid on use
         for node in ast.walk(tree):
             if isinstance(node, ast.Import):
-                names = [a.name for a in node.names]
+                imports += [(a.name, id(node) not in in_functions) for a in node.names]
             elif isinstance(node, ast.ImportFrom) and node.level == 0:
-                names = [node.module]
-            else:
+                imports.append((node.module, id(node) not in in_functions))
+        imports += [(name, False) for name in lazy_modules(tree)]
+        for name, at_module_level in imports:
+            name = name.split(".")[0]
+            if name in ours or name in sys.stdlib_module_names or name == "__future__":
                 continue
-            for name in (n.split(".")[0] for n in names):
-                if name in ours or name in sys.stdlib_module_names or name == "__future__":
-                    continue
-                declared = {d.lower() for d in owners.get(name, [name])}
-                at_module_level = id(node) not in in_functions
-                if declared & required or (declared & (extras | testbed) and not at_module_level):
-                    continue
-                if EXTRA_MODULES.get(str(path.relative_to(ROOT))) in declared:
-                    continue
-                wrong.append(f"{path.relative_to(ROOT)}: {name}")
+            declared = {d.lower() for d in owners.get(name, [name])}
+            if declared & required or (declared & (extras | testbed) and not at_module_level):
+                continue
+            if EXTRA_MODULES.get(str(path.relative_to(ROOT))) in declared:
+                continue
+            wrong.append(f"{path.relative_to(ROOT)}: {name}")
     assert not wrong, f"imports of undeclared packages: {wrong}"
 
 

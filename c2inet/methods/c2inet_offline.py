@@ -23,10 +23,13 @@ import torch
 
 from c2inet.errors import InputError
 from c2inet.gaussians import GaussianMixture
+from c2inet.lazy import lazy_module
 from c2inet.methods.base import TaskContext
 from c2inet.methods.c2inet_online import C2INetOnline, C2INetOptions
 from c2inet.options import require
 from c2inet.prior import bounded_task_mass
+
+sk_cluster = lazy_module("sklearn.cluster")  # scikit-learn loads where k-means first runs
 
 
 @dataclass(frozen=True)
@@ -50,15 +53,15 @@ class C2INetOffline(C2INetOnline):
     def _cluster(self, ctx: TaskContext, centres: np.ndarray | None) -> None:
         """Set the task's components from k-means of its current posteriors (from ``centres``,
         or from k-means++ seeded by the task's generator)."""
-        from sklearn.cluster import KMeans  # here: scikit-learn is slow to import
-
         mean, logvar = self._current_posterior(ctx)
         points = mean.cpu().numpy().astype(np.float64)
         k = min(self.options.clusters, len(np.unique(points, axis=0)))
         if centres is not None and len(centres) == k:
-            kmeans = KMeans(k, init=centres, n_init=1).fit(points)
+            kmeans = sk_cluster.KMeans(k, init=centres, n_init=1).fit(points)
         else:
-            kmeans = KMeans(k, n_init=1, random_state=int(ctx.rng.integers(2**31))).fit(points)
+            kmeans = sk_cluster.KMeans(k, n_init=1, random_state=int(ctx.rng.integers(2**31))).fit(
+                points
+            )
         labels = torch.as_tensor(kmeans.labels_, device=mean.device)
         means, logvars, sizes = [], [], []
         for j in range(k):

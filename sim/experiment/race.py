@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from optuna.trial import TrialState
 
 from sim.experiment.config import Execution
 from sim.experiment.sweep import layered, plan, run_together
@@ -37,7 +38,6 @@ def race_best(
     ``TuneConfig``, untyped here: the tuning imports this module) again on ``tune.race_seeds`` more
     seeds, all in one round; returns per method and trial number its objectives, its own first
     (a diverged run's as infinity)."""
-    from optuna.trial import TrialState
 
     base = replace(tune.base, seeds=1, record=False)
     entrants, planned = [], []

@@ -5,8 +5,14 @@ the one-line refusal of a store Optuna cannot open, given before any folder is c
 from __future__ import annotations
 
 import json
+import sqlite3
 from pathlib import Path
 from typing import Any
+
+import optuna
+from optuna.storages import JournalStorage
+from optuna.storages.journal import JournalFileBackend
+from sqlalchemy.engine import make_url
 
 from c2inet.errors import InputError
 from c2inet.files import check_path_length
@@ -19,9 +25,6 @@ def storage_of(url: str) -> Any:
     processes on several machines may share; its appends are locked), else the database URL."""
     if not url.startswith(JOURNAL):
         return url
-    from optuna.storages import JournalStorage
-    from optuna.storages.journal import JournalFileBackend
-
     return JournalStorage(JournalFileBackend(str(Path(url[len(JOURNAL) :]).expanduser())))
 
 
@@ -36,11 +39,6 @@ def check_storage(url: str | None, where: str | None = None) -> None:
     if url.startswith(JOURNAL):
         _check_journal(check_path_length(Path(url[len(JOURNAL) :]).expanduser(), where), where)
         return
-    import sqlite3
-
-    import optuna
-    from sqlalchemy.engine import make_url
-
     try:
         parsed = make_url(url)
     except Exception as error:  # SQLAlchemy's parser: whatever it raises

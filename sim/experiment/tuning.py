@@ -46,6 +46,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import optuna
+from optuna.distributions import CategoricalDistribution, FloatDistribution, IntDistribution
+from optuna.trial import TrialState
 
 from c2inet.errors import InputError
 from c2inet.files import write_text_atomic
@@ -130,7 +133,6 @@ def _sampler(seed: int, method: str, index: int, trials: int, kind: str = "tpe",
     method, the index (a resumed tuning asks the same settings) and the preset's name, the
     first part of the benchmark's key ``prefix`` (``NAME-HASH:``): two presets never draw the
     same design, while one preset's draws never depend on the curriculum it evaluates."""
-    import optuna
 
     parts = [seed, zlib.crc32(method.encode()), index]
     name = prefix.rsplit("-", 1)[0]
@@ -178,7 +180,6 @@ def _finite(value: float) -> float | None:
 
 def _distribution(space: Tunable | Choice):
     """The Optuna distribution of one searched range or choice."""
-    from optuna.distributions import CategoricalDistribution, FloatDistribution, IntDistribution
 
     if isinstance(space, Choice):
         return CategoricalDistribution(space.values)
@@ -205,8 +206,6 @@ def run_tuning(
     """Tune every method of ``tune.base`` under ``out``, continuing whatever an earlier, killed
     tuning left there; returns per method its chosen settings (``settings``, by scope), their
     objective, the defaults' objective and every trial. Also written to ``out/tuning.json``."""
-    import optuna
-    from optuna.trial import TrialState
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     execution = execution or Execution()
@@ -272,8 +271,6 @@ def open_studies(tune: TuneConfig, out: Path, methods: list[str]) -> dict[str, A
     """Each method's Optuna study in the tuning's store (``out/tuning.db`` unless
     ``tune.storage``), created or loaded; a damaged store or a study that is not ours is one
     line, and the trials a killed tuning left running are failed, to be asked again."""
-    import optuna
-    from optuna.trial import TrialState
 
     url = tune.storage or f"sqlite:///{(out / 'tuning.db').resolve()}"
     if tune.storage is None:  # our own store, damaged since: one line, not the driver's error
@@ -299,7 +296,6 @@ def tell(study, trial, result: Result, tasks: int) -> None:
     """Report a finished trial's objective after each task it learnt and close it: complete,
     or pruned if it stopped early. A diverged trial is the worst there is, not a failure to ask
     again (same seed, same history: the same settings, for ever)."""
-    from optuna.trial import TrialState
 
     curve = [round(float(v), 6) for v in objective_so_far(result)]  # as metrics.json has them
     for task, value in enumerate(curve):
@@ -315,7 +311,6 @@ def choice(method: str, study, raced: dict[int, list[float]] | None = None) -> d
     settings, beside the defaults' objective and every trial, in the order they were asked.
     With ``raced`` (trial number: its objectives over the race's seeds), the raced trial of the
     best mean is chosen, and ``objective`` is that mean."""
-    from optuna.trial import TrialState
 
     trials = study.get_trials(deepcopy=False, states=(TrialState.COMPLETE, TrialState.PRUNED))
     complete = [t for t in trials if t.state == TrialState.COMPLETE]
@@ -348,7 +343,6 @@ def _curve(trial) -> list[float]:
 def _trial_record(trial) -> dict[str, Any]:
     """A trial for ``tuning.json``: its settings, its objective (null when pruned or diverged),
     whether it was pruned, and its objective so far after each task it learnt."""
-    from optuna.trial import TrialState
 
     curve, pruned = _curve(trial), trial.state == TrialState.PRUNED
     return {

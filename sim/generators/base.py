@@ -8,6 +8,7 @@ a generator against that contract (a test runs it over every registered one).
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -49,8 +50,6 @@ class Generator:
     @classmethod
     def resolve(cls, knobs: Any, base_dir: Path) -> dict[str, Any]:
         """Knobs as a plain dict; generators that read files resolve their paths here."""
-        import dataclasses
-
         return dataclasses.asdict(knobs)
 
     @classmethod

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from c2inet.errors import InputError
+from c2inet.lazy import lazy_module
 from c2inet.options import check_range
 from sim.domains import domain_seed
 from sim.generators import child_seed
@@ -38,6 +39,14 @@ if TYPE_CHECKING:  # the learner and the engine load once there is work (``sim.s
     from c2inet.stream import StreamLearner
     from c2inet.trainer import Task
     from sim.experiment import Execution, ExperimentConfig
+
+# the learner, the engine and the figures load once there is work (sim.studies.base)
+evaluation = lazy_module("c2inet.evaluation")
+streaming = lazy_module("c2inet.stream")
+engine = lazy_module("sim.experiment")
+cell_runs = lazy_module("sim.experiment.cells")
+curriculum = lazy_module("sim.experiment.curriculum")
+study_figures = lazy_module("viz.study_figures")
 
 STRATEGIES = ("error", "relative", "spread", "fixed", "random")
 
@@ -68,10 +77,10 @@ class ActiveOptions:
 
 def grid_specs(config: ExperimentConfig) -> list[DomainSpec]:
     """The grid: one numeric family that can simulate single scenes, two values or more."""
-    from sim.experiment.curriculum import knob_grid
-
     where = f"scenario {config.scenario!r} (an active curriculum's grid)"
-    return knob_grid(config.specs, where, "crowd_noise_0.1..0.6:0.05", single_scenes=True)
+    return curriculum.knob_grid(
+        config.specs, where, "crowd_noise_0.1..0.6:0.05", single_scenes=True
+    )
 
 
 class SceneSource:
@@ -86,12 +95,12 @@ class SceneSource:
         self.made: dict[tuple[int, int], Windows] = {}
 
     def draw(self, round_: int, index: int) -> Windows:
-        from sim.experiment.curriculum import scene_windows
-
         if (round_, index) not in self.made:
             spec = self.specs[index]
             seeds = [child_seed(self.seeds[index], round_, k) for k in range(self.scenes)]
-            self.made[round_, index] = scene_windows(spec.family, [spec.value] * self.scenes, seeds)
+            self.made[round_, index] = curriculum.scene_windows(
+                spec.family, [spec.value] * self.scenes, seeds
+            )
         return self.made[round_, index]
 
 
@@ -108,10 +117,8 @@ def run_strategy(
 ) -> dict[str, list]:
     """One strategy's rounds (a cell): the values it chose and the held-out errors after each.
     ``baseline``: constant velocity's validation ADE at each grid value."""
-    from c2inet.stream import StreamLearner
-
     train = replace(config.train_config(seed_index), diagnostics=False, val_every=0)
-    learner = StreamLearner(config.method(method), train)
+    learner = streaming.StreamLearner(config.method(method), train)
     order = np.random.SeedSequence(config.seed, spawn_key=(seed_index, order_seed))
     rng = np.random.default_rng(order)
     grid = len(tasks)
@@ -153,22 +160,20 @@ def run_active(
 ) -> dict[str, Any]:
     """Every strategy for the first method of ``config``, its runs as cells on ``execution``
     (kept in ``folder``, if given, for ``resume``); the report as a dictionary."""
-    from c2inet.evaluation import evaluate
-    from sim.experiment import Execution
-    from sim.experiment.cells import cell_identity, run_cells
-    from sim.experiment.curriculum import experiment_tasks
-
-    execution = execution or Execution()
+    execution = execution or engine.Execution()
     specs = grid_specs(config)
     if config.quick:
         options = replace(options, rounds=min(options.rounds, 3), scenes=min(options.scenes, 6))
-    tasks, _ = experiment_tasks(specs, config, execution)
+    tasks, _ = curriculum.experiment_tasks(specs, config, execution)
     if any(t.val is None for t in tasks):
         raise InputError(f"scenario {config.scenario!r}: every grid value needs validation scenes")
     method = config.methods[0]
     source = SceneSource(specs, options.scenes, config.seed)
     cv = config.method("cv").build_model()
-    baseline = [evaluate(cv, t.val, config.k, config.seed + j)["ade"] for j, t in enumerate(tasks)]
+    baseline = [
+        evaluation.evaluate(cv, t.val, config.k, config.seed + j)["ade"]
+        for j, t in enumerate(tasks)
+    ]
     orders = {s: options.random_orders if s == "random" else 1 for s in options.strategies}
     cells = {
         f"{strategy}-seed_{s}-order_{o}": (strategy, o, s)
@@ -177,9 +182,9 @@ def run_active(
         for o in range(orders[strategy])
     }
     data = [w.positions for t in tasks for w in (t.val, t.test)]
-    identity = cell_identity("active", config.to_json(), asdict(options), arrays=data)
+    identity = cell_runs.cell_identity("active", config.to_json(), asdict(options), arrays=data)
     shared = (config, method, tasks, source, options, baseline)
-    done = run_cells(run_strategy, cells, shared, execution, folder, identity, resume)
+    done = cell_runs.run_cells(run_strategy, cells, shared, execution, folder, identity, resume)
     strategies = {
         strategy: strategy_summary(
             [done[name] for name, (chosen, *_) in cells.items() if chosen == strategy]
@@ -258,9 +263,7 @@ class Active(Study):
     markdown = staticmethod(active_markdown)
 
     def figure(self, report, path):
-        from viz.study_figures import active_figure
-
-        active_figure(report, path)
+        study_figures.active_figure(report, path)
 
     def add_options(self, p):
         p.add_argument(

@@ -15,11 +15,15 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from c2inet.lazy import lazy_module
 from c2inet.registry import Registry
 
 if TYPE_CHECKING:  # a study's module stays light at import (the engine, the learner and the
     # figures load in ``run``, ``figure``): listing the studies costs no torch
     from sim.experiment import Execution, ExperimentConfig
+
+# loaded on first use: a command that stops at bad input or answers --help does not pay for it
+outputs = lazy_module("sim.experiment.outputs")
 
 
 def _is_study(entry: Any) -> str | None:
@@ -94,10 +98,8 @@ class Study:
 
     def write(self, report: dict[str, Any], out: Path) -> str:
         """``NAME.json``, ``NAME.md`` and ``NAME.png`` of ``report`` in ``out``; returns NAME."""
-        from sim.experiment.outputs import write_report
-
         name = self.report or self.name
-        write_report(out, name, report, self.markdown, self.figure)
+        outputs.write_report(out, name, report, self.markdown, self.figure)
         return name
 
 

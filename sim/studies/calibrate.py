@@ -28,12 +28,19 @@ import numpy as np
 
 from c2inet.errors import InputError
 from c2inet.files import write_text_atomic
+from c2inet.lazy import lazy_module
 from sim.data import Scene
 from sim.domains import build_domain
 from sim.families import Splits
 from sim.scenario import DomainSpec, parse_scenario
 from sim.stats import PROFILES, scene_profiles
 from sim.studies.base import Study, register
+
+# the learner, the engine and the figures load once there is work (sim.studies.base)
+optuna = lazy_module("optuna")
+scipy_stats = lazy_module("scipy.stats")
+crowd = lazy_module("sim.generators.crowd")
+study_figures = lazy_module("viz.study_figures")
 
 # knob -> (low, high, integer); speed_spread is searched as a share of speed (it must stay below
 # half of it); the categorical knobs among the generator's options (choices())
@@ -49,10 +56,8 @@ SPACE: dict[str, tuple[float, float, bool]] = {
 
 def choices() -> dict[str, tuple[str, ...]]:
     """The categorical knobs: the crowd generator's own options (loaded with the simulator)."""
-    from sim.generators.crowd import CONTROLLERS, LAYOUTS, STARTS
-
     # start: from rest, or at the preferred velocity (a recording's agents are moving)
-    return {"layout": LAYOUTS, "start": STARTS, "controller": CONTROLLERS}
+    return {"layout": crowd.LAYOUTS, "start": crowd.STARTS, "controller": crowd.CONTROLLERS}
 
 
 WINDOW = 20  # frames of a compared span: the generator's scene, a window of the learner
@@ -76,8 +81,6 @@ def profile_distances(
 ) -> dict[str, float | None]:
     """Per profile, the 1-Wasserstein distance of the two sides' finite values divided by the
     reference's spread (its standard deviation; 1 where it has none)."""
-    from scipy.stats import wasserstein_distance
-
     out: dict[str, float | None] = {}
     for name in PROFILES:
         a, b = generated[name], reference[name]
@@ -86,7 +89,7 @@ def profile_distances(
             out[name] = None
             continue
         spread = float(np.std(b)) or 1.0
-        out[name] = float(wasserstein_distance(a, b)) / spread
+        out[name] = float(scipy_stats.wasserstein_distance(a, b)) / spread
     return out
 
 
@@ -190,8 +193,6 @@ def _side(trial) -> dict[str, Any]:
 def calibrate(fit: CalibrateConfig, execution, out: Path) -> dict[str, Any]:
     """Fit the knobs of ``fit.scenario``'s (first) family to the reference's training windows;
     returns the report and writes the calibrated family file into ``out``."""
-    import optuna
-
     extra = list(fit.extra)
     base = parse_scenario(fit.scenario, extra)[0]
     if base.family.generator != "crowd":
@@ -320,9 +321,7 @@ class Calibrate(Study):
     markdown = staticmethod(calibration_markdown)
 
     def figure(self, report, path):
-        from viz.study_figures import calibration_figure
-
-        calibration_figure(report, path)
+        study_figures.calibration_figure(report, path)
 
     def add_options(self, p):
         p.add_argument("--reference", required=True, help="the recording, e.g. eth_ucy_eth")

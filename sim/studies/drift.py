@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from c2inet.errors import InputError
+from c2inet.lazy import lazy_module
 from c2inet.options import check_range
 from sim.domains import domain_seed
 from sim.generators import child_seed
@@ -32,6 +33,13 @@ from viz.cli import bounded_float, bounded_int
 if TYPE_CHECKING:  # the learner and the engine load once there is work (``sim.studies.base``)
     from c2inet.data import Windows
     from sim.experiment import Execution, ExperimentConfig
+
+# the learner, the engine and the figures load once there is work (sim.studies.base)
+streaming = lazy_module("c2inet.stream")
+engine = lazy_module("sim.experiment")
+cell_runs = lazy_module("sim.experiment.cells")
+curriculum = lazy_module("sim.experiment.curriculum")
+study_figures = lazy_module("viz.study_figures")
 
 BOUNDARIES = ("detect", "none", "chunks")
 DEFAULT_METHODS = "finetune,ewc,derpp,c2inet-online"
@@ -59,10 +67,8 @@ class DriftOptions:
 def drift_specs(config: ExperimentConfig) -> list[DomainSpec]:
     """The probe domains: one numeric family that can simulate single scenes, two values or
     more."""
-    from sim.experiment.curriculum import knob_grid
-
     where = f"scenario {config.scenario!r} (a drift)"
-    return knob_grid(config.specs, where, "crowd_noise_0.1..0.6", single_scenes=True)
+    return curriculum.knob_grid(config.specs, where, "crowd_noise_0.1..0.6", single_scenes=True)
 
 
 def drift_stream(
@@ -73,15 +79,13 @@ def drift_stream(
     Scene ``i`` is simulated at ``start + (end - start) * i / (scenes - 1)`` from its own child
     seed, so the stream is the same whatever the chunking.
     """
-    from sim.experiment.curriculum import scene_windows
-
     family, start, end = specs[0].family, specs[0].value, specs[-1].value
     values = np.linspace(start, end, options.scenes)
     root = domain_seed(seed, replace(specs[0], label="drift"))
     seeds = [child_seed(root, i) for i in range(options.scenes)]
     bounds = np.linspace(0, options.scenes, options.chunks + 1).round().astype(int)
     pieces = list(zip(bounds[:-1], bounds[1:], strict=True))
-    chunks = [scene_windows(family, values[a:b], seeds[a:b]) for a, b in pieces]
+    chunks = [curriculum.scene_windows(family, values[a:b], seeds[a:b]) for a, b in pieces]
     middles = np.array([values[(a + b - 1) // 2] for a, b in pieces])
     return chunks, middles
 
@@ -91,11 +95,9 @@ def stream_run(
 ) -> dict[str, list]:
     """One method and seed through the stream (a cell): the (chunks x probes) ADE and FDE, and
     the boundaries the detector found and the method was given."""
-    from c2inet.stream import ShiftDetector, StreamLearner
-
     train = replace(config.train_config(seed_index), diagnostics=False, val_every=0)
-    learner = StreamLearner(config.method(method), train)
-    detector = ShiftDetector(options.threshold)
+    learner = streaming.StreamLearner(config.method(method), train)
+    detector = streaming.ShiftDetector(options.threshold)
     ade, fde, found = np.zeros((len(chunks), len(probes))), np.zeros((len(chunks), len(probes))), []
     for c, chunk in enumerate(chunks):
         if detector(chunk):
@@ -128,23 +130,19 @@ def run_drift(
 ) -> dict[str, Any]:
     """Every method and seed of ``config`` through the drift stream, as cells on
     ``execution``'s backend (kept in ``folder``, if given, for ``resume``); the report."""
-    from sim.experiment import Execution
-    from sim.experiment.cells import cell_identity, run_cells
-    from sim.experiment.curriculum import experiment_tasks
-
-    execution = execution or Execution()
+    execution = execution or engine.Execution()
     specs = drift_specs(config)
     if config.quick:
         options = replace(options, scenes=min(options.scenes, 24), chunks=min(options.chunks, 3))
-    tasks, _ = experiment_tasks(specs, config, execution)
+    tasks, _ = curriculum.experiment_tasks(specs, config, execution)
     probes = [task.test for task in tasks]
     probe_values = [float(spec.value) for spec in specs]
     chunks, middles = drift_stream(specs, options, config.seed)
     cells = {f"{m}-seed_{s}": (m, s) for m in config.methods for s in range(config.seeds)}
     data = [w.positions for w in chunks + probes]
-    identity = cell_identity("drift", config.to_json(), asdict(options), arrays=data)
+    identity = cell_runs.cell_identity("drift", config.to_json(), asdict(options), arrays=data)
     shared = (config, chunks, probes, options)
-    done = run_cells(stream_run, cells, shared, execution, folder, identity, resume)
+    done = cell_runs.run_cells(stream_run, cells, shared, execution, folder, identity, resume)
     methods = {
         name: {
             "needs_boundaries": config.method(name).needs_boundaries(),
@@ -242,9 +240,7 @@ class Drift(Study):
     markdown = staticmethod(drift_markdown)
 
     def figure(self, report, path):
-        from viz.study_figures import drift_figure
-
-        drift_figure(report, path)
+        study_figures.drift_figure(report, path)
 
     def add_options(self, p):
         p.add_argument("--scenes", type=bounded_int(2, 100_000), default=600, help="stream length")

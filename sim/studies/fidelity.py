@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from c2inet.errors import InputError
+from c2inet.lazy import lazy_module
 from sim.data import Domain
 from sim.scenario import parse_scenario
 from sim.stats import PROFILES, realised_summary, relative_difference, scene_profiles
@@ -34,6 +35,15 @@ if TYPE_CHECKING:  # the learner and the engine load once there is work (``sim.s
     from c2inet.trainer import Task
     from sim.experiment import Execution, ExperimentConfig
 
+# the learner, the engine and the figures load once there is work (sim.studies.base)
+evaluation = lazy_module("c2inet.evaluation")
+training = lazy_module("c2inet.trainer")
+scipy_stats = lazy_module("scipy.stats")
+engine = lazy_module("sim.experiment")
+cell_runs = lazy_module("sim.experiment.cells")
+curriculum = lazy_module("sim.experiment.curriculum")
+study_figures = lazy_module("viz.study_figures")
+
 TOLERANCE = 0.10  # relative difference of a statistic that still counts as matched
 TRANSFER_TARGET = 1.2  # generated-trained over reference-trained error on the reference
 SIDES = ("generated", "reference")
@@ -42,8 +52,6 @@ SIDES = ("generated", "reference")
 def compare_statistics(generated: Domain, reference: Domain) -> dict[str, Any]:
     """Realised statistics of two domains (all splits), their relative differences, and the
     distances and histograms of their per-scene distributions."""
-    from scipy.stats import wasserstein_distance
-
     stats, profiles = {}, {}
     for side, domain in zip(SIDES, (generated, reference), strict=True):
         scenes = [scene for split in domain.scenes.values() for scene in split]
@@ -60,7 +68,7 @@ def compare_statistics(generated: Domain, reference: Domain) -> dict[str, Any]:
         if not (a.size and b.size):
             distances[name], histograms[name] = None, None
             continue
-        distances[name] = float(wasserstein_distance(a, b))
+        distances[name] = float(scipy_stats.wasserstein_distance(a, b))
         edges = np.histogram_bin_edges(np.concatenate([a, b]), bins=30)
         histograms[name] = {
             "edges": edges.tolist(),
@@ -81,13 +89,13 @@ def transfer_cell(
 ) -> dict[str, list[float]]:
     """One row of the transfer matrix (a cell): ADE and FDE on every task of a model trained on
     task ``trained_on`` alone."""
-    from c2inet.evaluation import evaluate
-    from c2inet.trainer import ContinualTrainer
-
     train = replace(config.train_config(seed_index), diagnostics=False, val_every=0)
-    trainer = ContinualTrainer(config.method(method), [tasks[trained_on]], train)
+    trainer = training.ContinualTrainer(config.method(method), [tasks[trained_on]], train)
     trainer.run()
-    scores = [evaluate(trainer.model, t.test, train.k, train.seed + j) for j, t in enumerate(tasks)]
+    scores = [
+        evaluation.evaluate(trainer.model, t.test, train.k, train.seed + j)
+        for j, t in enumerate(tasks)
+    ]
     return {"ade": [s["ade"] for s in scores], "fde": [s["fde"] for s in scores]}
 
 
@@ -102,19 +110,15 @@ def transfer_matrix(
     """ADE and FDE (best of K, metres) of a model trained on each task alone and tested on every
     task (rows: trained on; columns: tested on), the mean over ``config.seeds`` seeds, and
     constant velocity's on every task. The trainings run as cells on ``execution``."""
-    from c2inet.evaluation import evaluate
-    from sim.experiment import Execution
-    from sim.experiment.cells import cell_identity, run_cells
-
     n = len(tasks)
     cells = {f"seed_{s}-task_{i}": (s, i) for s in range(config.seeds) for i in range(n)}
     data = [t.test.positions for t in tasks] + [t.train.positions for t in tasks]
-    identity = cell_identity("fidelity", config.to_json(), method, arrays=data)
-    done = run_cells(
+    identity = cell_runs.cell_identity("fidelity", config.to_json(), method, arrays=data)
+    done = cell_runs.run_cells(
         transfer_cell,
         cells,
         (config, method, tasks),
-        execution or Execution(),
+        execution or engine.Execution(),
         folder,
         identity,
         resume,
@@ -123,7 +127,9 @@ def transfer_matrix(
     ade = np.array([[row["ade"] for row in seed] for seed in rows])
     fde = np.array([[row["fde"] for row in seed] for seed in rows])
     cv = config.method("cv").build_model()
-    baseline = [evaluate(cv, t.test, config.k, config.seed + j) for j, t in enumerate(tasks)]
+    baseline = [
+        evaluation.evaluate(cv, t.test, config.k, config.seed + j) for j, t in enumerate(tasks)
+    ]
     return {
         "tasks": [t.name for t in tasks],
         "ade": ade.mean(0).tolist(),
@@ -163,10 +169,7 @@ def fidelity_report(
     """The fidelity report of ``scenario`` against ``reference`` as a dictionary (see the
     module docstring); ``config`` gives the training options of the transfer runs, which run
     as cells on ``execution`` (kept in ``folder``, if given, for ``resume``)."""
-    from sim.experiment import Execution
-    from sim.experiment.curriculum import experiment_tasks
-
-    execution = execution or Execution()
+    execution = execution or engine.Execution()
     extra = list(config.scenarios_dir)
     data = config.settings.get("data")
     generated_specs = parse_scenario(scenario, extra, data)
@@ -177,7 +180,7 @@ def fidelity_report(
             f"{scenario!r} {len(generated_specs)}: they pair by position, so give as many"
         )
     specs = generated_specs + reference_specs
-    tasks, domains = experiment_tasks(specs, config, execution)
+    tasks, domains = curriculum.experiment_tasks(specs, config, execution)
     n = len(generated_specs)
     pairs = []
     for i in range(n):
@@ -287,9 +290,7 @@ class Fidelity(Study):
     markdown = staticmethod(fidelity_markdown)
 
     def figure(self, report, path):
-        from viz.study_figures import fidelity_figure
-
-        fidelity_figure(report, path)
+        study_figures.fidelity_figure(report, path)
 
     def add_options(self, p):
         p.add_argument(

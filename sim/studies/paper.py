@@ -13,11 +13,16 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from c2inet.errors import InputError
+from c2inet.lazy import lazy_module
 from c2inet.significance import detectable, paired
 from sim.studies.base import Study, register
 
 if TYPE_CHECKING:  # the engine loads once there is work (``sim.studies.base``)
     from sim.experiment import ExperimentConfig
+
+# the learner, the engine and the figures load once there is work (sim.studies.base)
+sweeping = lazy_module("sim.experiment.sweep")
+study_figures = lazy_module("viz.study_figures")
 
 ETH_UCY = "eth_ucy_univ,eth,zara1,zara2,hotel"  # the paper's order U-E-Z1-Z2-H
 C2INET = "c2inet-online"
@@ -87,9 +92,9 @@ PRESETS = {
 
 
 def study_sweep(study: Preset, base: ExperimentConfig, scenarios: tuple[str, ...] | None):
-    from sim.experiment.sweep import SweepConfig
-
-    return SweepConfig(base, scenarios or study.scenarios, variants=tuple(study.variants.items()))
+    return sweeping.SweepConfig(
+        base, scenarios or study.scenarios, variants=tuple(study.variants.items())
+    )
 
 
 def summarise_study(study: Preset, entries: list[tuple[str, ExperimentConfig, dict]]) -> dict:
@@ -244,9 +249,7 @@ class PaperStudy(Study):
     markdown = staticmethod(study_markdown)
 
     def figure(self, report, path):
-        from viz.study_figures import study_figure
-
-        study_figure(report, path)
+        study_figures.study_figure(report, path)
 
     def __init__(self, name: str, preset: Preset):
         self.name, self.preset, self.title = name, preset, preset.title
@@ -262,10 +265,8 @@ class PaperStudy(Study):
         if config.methods != (C2INET,):
             raise InputError(f"--methods: the paper's studies are of {C2INET} alone")
         scenarios = tuple(args.scenario) if args.scenario else None
-        from sim.experiment.sweep import run_sweep
-
         sweep = study_sweep(self.preset, config, scenarios)
-        entries = run_sweep(sweep, out, execution, args.resume, args.overwrite, argv)
+        entries = sweeping.run_sweep(sweep, out, execution, args.resume, args.overwrite, argv)
         return {**summarise_study(self.preset, entries), "by": self.preset.by}
 
 

@@ -11,15 +11,27 @@ published rows beside.
 
 from __future__ import annotations
 
+import json
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from c2inet.lazy import lazy_module
+from sim.experiment.folders import run_root
 from sim.studies.base import Study, register
 
-if TYPE_CHECKING:  # the engine loads once there is work (``sim.studies.base``)
+if TYPE_CHECKING:
     from sim.experiment import Execution, ExperimentConfig
+
+# the learner, the engine and the figures load once there is work (``sim.studies.base``)
+checkpoints = lazy_module("c2inet.checkpoints")
+evaluation = lazy_module("c2inet.evaluation")
+engine = lazy_module("sim.experiment")
+curriculum = lazy_module("sim.experiment.curriculum")
+sweeping = lazy_module("sim.experiment.sweep")
+study_figures = lazy_module("viz.study_figures")
 
 SCENES = ("eth", "hotel", "univ", "zara1", "zara2")
 FAMILY = "eth_ucy_loo"
@@ -56,34 +68,26 @@ def evaluate_saved(
 ) -> dict[str, float]:
     """The metrics of one job's trained model (its task checkpoint in ``folder``) on ``test``,
     scored as the trainer scores (K samples, the job's seed)."""
-    from c2inet.checkpoints import load_checkpoint
-    from c2inet.evaluation import evaluate
-    from sim.experiment.config import Job
-
-    state = load_checkpoint(Job(method, seed_index).folder(folder) / "checkpoints/task_00.pt")
+    job = engine.Job(method, seed_index).folder(folder)
+    state = checkpoints.load_checkpoint(job / "checkpoints/task_00.pt")
     instance = config.method(method)
     model = instance.build_model()
     model.load_state_dict(state["model"])
     instance.load_state_dict(state["method"], model)
-    return evaluate(model, test, config.k, config.seed + seed_index)
+    return evaluation.evaluate(model, test, config.k, config.seed + seed_index)
 
 
 def summarise(config: ExperimentConfig, out: Path, execution: Execution) -> dict[str, Any]:
     """Per method, window protocol and minimum: each scene's mean over seeds and the average
     over scenes; sgan's windows from the runs' own scores, the project's by scoring the saved
     models on the test windows with lone agents kept."""
-    from dataclasses import replace
-
-    from sim.experiment.curriculum import experiment_tasks
-    from sim.experiment.folders import run_root
-
     rows: dict[str, dict[str, dict[str, list[list[float]]]]] = {}
     for name in scenarios():
         scene_config = replace(config, scenario=name)
         folder = out / run_root(name).name / "default"
         data = {**config.settings.get("data", {}), "windows.min_agents": WINDOWS["project"]}
         project = replace(scene_config, settings={**config.settings, "data": data})
-        (kept,), _ = experiment_tasks(project.specs, project, execution)
+        (kept,), _ = curriculum.experiment_tasks(project.specs, project, execution)
         for method in config.methods:
             for windows in WINDOWS:
                 scores = [
@@ -107,6 +111,7 @@ def summarise(config: ExperimentConfig, out: Path, execution: Execution) -> dict
         "train": {k: v for k, v in vars(config.train_config()).items() if k != "stop_above"},
         "loss_units": model.loss_units,
         "residual": model.residual,
+        "noise_per": model.noise_per,
         "quick": config.quick,
         "measured": rows,
         "published": {name: {"minimum": m, "rows": r} for name, (m, r) in PUBLISHED.items()},
@@ -115,17 +120,13 @@ def summarise(config: ExperimentConfig, out: Path, execution: Execution) -> dict
 
 def job_seconds(config: ExperimentConfig, out: Path) -> dict[str, list[float]]:
     """Per method, each scene's training and evaluation in CPU seconds (mean over seeds)."""
-    import json
-
-    from sim.experiment.config import Job
-    from sim.experiment.folders import run_root
-
     seconds: dict[str, list[float]] = {}
     for method in config.methods:
         for name in scenarios():
             folder = out / run_root(name).name / "default"
-            jobs = [Job(method, i).folder(folder) / "result.json" for i in range(config.seeds)]
-            each = [json.loads(job.read_text()).get("cpu_seconds", np.nan) for job in jobs]
+            jobs = [engine.Job(method, i).folder(folder) for i in range(config.seeds)]
+            each = [json.loads((job / "result.json").read_text()) for job in jobs]
+            each = [result.get("cpu_seconds", np.nan) for result in each]
             seconds.setdefault(method, []).append(float(np.mean(each)))
     return seconds
 
@@ -135,11 +136,7 @@ def _scores(config, folder: Path, method: str, seed: int, windows: str, kept) ->
     the windows that keep lone agents."""
     if windows == "project":
         return evaluate_saved(config, folder, method, seed, kept)
-    import json
-
-    from sim.experiment.config import Job
-
-    result = json.loads((Job(method, seed).folder(folder) / "result.json").read_text())
+    result = json.loads((engine.Job(method, seed).folder(folder) / "result.json").read_text())
     return {metric: result["matrices"][metric][0][0] for m in MINIMA.values() for metric in m}
 
 
@@ -164,6 +161,8 @@ def reproduce_markdown(report: dict[str, Any]) -> str:
         f"augmentation {train['augment']}, loss in "
         f"{report.get('loss_units', 'scale')} units, decoder steps "
         + ("changes of the last displacement" if report.get("residual", True) else "displacements")
+        + ", noise drawn per "
+        + report.get("noise_per", "agent")
         + "."
         + (" **--quick: a smoke test.**" if report["quick"] else ""),
         "",
@@ -237,15 +236,11 @@ class Reproduce(Study):
     markdown = staticmethod(reproduce_markdown)
 
     def figure(self, report, path):
-        from viz.study_figures import reproduce_figure
-
-        reproduce_figure(report, path)
+        study_figures.reproduce_figure(report, path)
 
     def run(self, args, config, execution, out, argv):
-        from sim.experiment.sweep import SweepConfig, run_sweep
-
-        sweep = SweepConfig(config, scenarios())
-        run_sweep(sweep, out, execution, args.resume, args.overwrite, argv)
+        sweep = sweeping.SweepConfig(config, scenarios())
+        sweeping.run_sweep(sweep, out, execution, args.resume, args.overwrite, argv)
         return summarise(config, out, execution)
 
 

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from c2inet.lazy import lazy_module
 from sim.data import Domain
 from sim.scenario import DomainSpec, parse_scenario
 from sim.stats import relative_difference
@@ -27,6 +28,13 @@ from sim.studies.base import Study, register
 if TYPE_CHECKING:  # the engine loads once there is work (``sim.studies.base``)
     from sim.experiment import Execution, ExperimentConfig
 
+# the learner, the engine and the figures load once there is work (sim.studies.base)
+parquet = lazy_module("pyarrow.parquet")
+scipy_stats = lazy_module("scipy.stats")
+curriculum = lazy_module("sim.experiment.curriculum")
+sweeping = lazy_module("sim.experiment.sweep")
+study_figures = lazy_module("viz.study_figures")
+
 DEFAULT_METHODS = "finetune,ewc,derpp,c2inet-online"
 COUNTS = ("overlaps", "crashes")  # statistics that count events rather than measure motion
 
@@ -34,12 +42,10 @@ COUNTS = ("overlaps", "crashes")  # statistics that count events rather than mea
 def shift_grid(scenario: str, config: ExperimentConfig) -> tuple[DomainSpec, list[DomainSpec]]:
     """The base domain and the shifted ones of one ``--scenario``, with the ``--set data.*``
     overrides of ``config`` (the domains its sweep trains on)."""
-    from sim.experiment.curriculum import knob_grid
-
     where = f"--scenario {scenario!r} (the base value first, the shifted ones after)"
     data = config.settings.get("data")
     specs = parse_scenario(scenario, list(config.scenarios_dir), data)
-    specs = knob_grid(specs, where, "crowd_noise_0.1..0.6")
+    specs = curriculum.knob_grid(specs, where, "crowd_noise_0.1..0.6")
     return specs[0], specs[1:]
 
 
@@ -57,16 +63,12 @@ def summarise_shift(
 ) -> dict[str, Any]:
     """Forgetting and transfer gap per family, shift and method, from the sweep's tidy
     ``results.parquet``, with both measures of each shift."""
-    import pyarrow.parquet as pq
-
-    from sim.experiment.curriculum import make_tasks
-
-    table = pq.read_table(out / "results.parquet").to_pandas()
+    table = parquet.read_table(out / "results.parquet").to_pandas()
     table = table[table["metric"] == "ade"]
     families = []
     for scenario in scenarios:
         base, shifted = shift_grid(scenario, config)
-        _, domains = make_tasks([base, *shifted], config.seed, config.quick, cache, 1)
+        _, domains = curriculum.make_tasks([base, *shifted], config.seed, config.quick, cache, 1)
         rows = []
         for spec, domain in zip(shifted, domains[1:], strict=True):
             pair = table[table["scenario"] == f"{base.name}+{spec.name}"]
@@ -126,11 +128,9 @@ MIN_RANKED = 4  # fewer shifts than this make any rank correlation +-1 or close:
 def _spearman(x, y) -> float:
     """Spearman's rank correlation (NaN where a side is constant or there are fewer than
     ``MIN_RANKED`` shifts: over two points it is always +-1)."""
-    from scipy.stats import spearmanr
-
     if len(x) < MIN_RANKED or len(set(x)) < 2 or len(set(np.round(y, 12))) < 2:
         return float("nan")
-    return float(spearmanr(x, y).statistic)
+    return float(scipy_stats.spearmanr(x, y).statistic)
 
 
 def shift_markdown(summary: dict[str, Any]) -> str:
@@ -196,13 +196,13 @@ def run_shift(
 ) -> dict[str, Any]:
     """Run every two-task curriculum of ``scenarios`` as one sweep into ``out``; returns the
     summary."""
-    from sim.experiment.sweep import SweepConfig, run_sweep
-
     pairs = []
     for scenario in scenarios:
         first, shifted = shift_grid(scenario, base)
         pairs += [f"{first.name}+{spec.name}" for spec in shifted]
-    run_sweep(SweepConfig(base, tuple(pairs)), out, execution, resume, overwrite, argv)
+    sweeping.run_sweep(
+        sweeping.SweepConfig(base, tuple(pairs)), out, execution, resume, overwrite, argv
+    )
     return summarise_shift(scenarios, base, out, execution.cache)
 
 
@@ -220,9 +220,7 @@ class Shift(Study):
     markdown = staticmethod(shift_markdown)
 
     def figure(self, report, path):
-        from viz.study_figures import shift_figure
-
-        shift_figure(report, path)
+        study_figures.shift_figure(report, path)
 
     def run(self, args, config, execution, out, argv):
         return run_shift(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import logging
 import os
@@ -149,8 +150,6 @@ def _parent_run(client, experiment: str, group: Path, run_folder: Path) -> str:
     """The run of ``run_folder`` (a sweep's variant, or the run itself), named by its place in
     ``group``, made by its first job (the jobs of a folder ask under a lock, so they share
     one) and found again by the others, by the report and by a resumed run."""
-    import fcntl
-
     name = run_folder.relative_to(group).as_posix() if run_folder.is_relative_to(group) else "."
     name = group.name if name == "." else name
     owner = hashlib.sha256(str(run_folder).encode()).hexdigest()[:16]

@@ -20,6 +20,7 @@ import sys
 from pathlib import Path
 
 from c2inet.errors import InputError
+from c2inet.lazy import lazy_module
 from sim.studies.base import Study, register
 from sim.studies.benchmark.presets import (
     BATCH,
@@ -35,6 +36,14 @@ from sim.studies.benchmark.presets import (
     Preset,
 )
 from viz.cli import bounded_float, bounded_int
+
+# loaded on first use: a command that stops at bad input or answers --help does not pay for it
+designs = lazy_module("sim.experiment.design")
+artefacts = lazy_module("sim.studies.benchmark.artefacts")
+board_markdown = lazy_module("sim.studies.benchmark.board_markdown")
+bench_config = lazy_module("sim.studies.benchmark.config")
+bench_estimate = lazy_module("sim.studies.benchmark.estimate")
+bench_protocol = lazy_module("sim.studies.benchmark.protocol")
 
 __all__ = ["BATCH", "PRESETS", "REFERENCE_SEEDS", "REPLAY_BUDGET", "SEEDS", "TRIALS", "Preset"]
 
@@ -218,13 +227,9 @@ class Benchmark(Study):
         return Path("bench") / (args.preset or "custom")
 
     def run(self, args, config, execution, out, argv):
-        from sim.studies.benchmark.config import BenchConfig
-        from sim.studies.benchmark.estimate import estimate_bench, estimate_table
-        from sim.studies.benchmark.protocol import run_bench
-
         preset = self.preset(args)
         tuned_from, design = self.tuning_source(args, preset)
-        bench = BenchConfig(
+        bench = bench_config.BenchConfig(
             config,
             name=args.preset or "custom",
             # a tuning that ran elsewhere says its own curriculum (--tuned-from, shipped)
@@ -253,24 +258,29 @@ class Benchmark(Study):
                            for k, v in values.items()] or ["its defaults"]  # fmt: skip
                 print(f"--tuned-from: {method}: {', '.join(applied)}", file=sys.stderr)
         if args.estimate:
-            print(estimate_table(bench, estimate_bench(bench, execution)))
+            print(
+                bench_estimate.estimate_table(
+                    bench, bench_estimate.estimate_bench(bench, execution)
+                )
+            )
             return None
         if args.tune_only:
-            run_bench(bench, out, execution, args.resume, args.overwrite, argv, tune_only=True)
+            bench_protocol.run_bench(
+                bench, out, execution, args.resume, args.overwrite, argv, tune_only=True
+            )
             return None
-        return run_bench(bench, out, execution, args.resume, args.overwrite, argv)
+        return bench_protocol.run_bench(bench, out, execution, args.resume, args.overwrite, argv)
 
     def tuning_source(self, args, preset: Preset | None):
         """Where the settings come from: (``--tuned-from`` or the preset's shipped artefact,
         None) when the board only evaluates; (None, the design) when it tunes (``--retune``,
         ``--tune-only``, a custom scenario, a preset that ships none)."""
-        from sim.experiment.design import Design
-        from sim.studies.benchmark.artefacts import shipped
-
         tunes = args.retune or args.tune_only
         if args.tuned_from is not None and tunes:
             raise InputError("--tuned-from takes settings, --retune and --tune-only make them")
-        artefact = args.tuned_from or (shipped(preset.name) if preset and not tunes else None)
+        artefact = args.tuned_from or (
+            artefacts.shipped(preset.name) if preset and not tunes else None
+        )
         if artefact is not None:
             tuning = [f for f, given in self.tuning_flags(args) if given]
             if tuning:
@@ -286,7 +296,7 @@ class Benchmark(Study):
             if args.design_offset is not None:
                 raise InputError("--design-offset moves the staged design's grids; not optuna's")
             return None, None
-        design = preset.design if preset else Design()
+        design = preset.design if preset else designs.Design()
         return None, design if args.design_offset is None else design.shifted(args.design_offset)
 
     @staticmethod
@@ -305,9 +315,7 @@ class Benchmark(Study):
         ]
 
     def markdown(self, report):
-        from sim.studies.benchmark.board_markdown import leaderboard_markdown
-
-        return leaderboard_markdown(report)
+        return board_markdown.leaderboard_markdown(report)
 
     def write(self, report, out) -> str:
         """The protocol wrote the board (``leaderboard.*`` and ``results.parquet``) itself."""

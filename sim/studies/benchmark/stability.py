@@ -15,15 +15,17 @@ from typing import Any
 
 import numpy as np
 
+from c2inet.lazy import lazy_module
 from c2inet.report import REFERENCE
 from c2inet.significance import ALPHA, LEVEL, holm, over_tunings, paired
+
+# loaded on first use: a command that stops at bad input or answers --help does not pay for it
+pq = lazy_module("pyarrow.parquet")
 
 
 def finals(board: Path) -> dict[str, dict[int, float]]:
     """Per method, each evaluation seed's final average point-prediction ADE (the mean over
     every task after the curriculum's last)."""
-    import pyarrow.parquet as pq
-
     rows = [r for r in pq.read_table(board / "results.parquet").to_pylist()
             if r["metric"] == "ade_k1"]  # fmt: skip
     last = list(dict.fromkeys(r["on_task"] for r in rows))[-1]  # the curriculum's order
