@@ -20,8 +20,11 @@ def test_the_page_names_its_recipe_and_holds_the_average_to_the_bar():
     assert "HOTEL 0.239 against STGAT's 0.35 (within 5 %: at most 0.3675): met" in page
     planted = copy.deepcopy(report)
     planted["train"]["select_metric"], planted["residual"] = "fde", False
+    planted["noise_per"] = "scene"
     scenes = np.array(planted["measured"]["finetune"]["sgan"]["scene"])
     planted["measured"]["finetune"]["sgan"]["scene"] = (scenes * [1.0, 0.95]).tolist()
     page = reproduce_markdown(planted)
-    assert "(best-of-20 FDE)" in page and "decoder steps displacements." in page
+    assert (
+        "(best-of-20 FDE)" in page and "decoder steps displacements, noise drawn per scene." in page
+    )
     assert "against the bar of 0.44/0.87: met" in page
