@@ -288,7 +288,7 @@ def test_a_familys_model_table_sets_the_networks_defaults_under_set(tmp_path):
     from sim.experiment import ExperimentConfig
 
     text = (SCENARIOS_DIR / "eth_ucy_loo.toml").read_text()
-    plain = text.replace("[values.eth]", "[model]\nresidual = false\n\n[values.eth]", 1)
+    plain = text.replace("[model]\n", "[model]\nresidual = false\n", 1)
     (tmp_path / "loo_plain.toml").write_text(plain)
     (tmp_path / "data").symlink_to(SCENARIOS_DIR / "data")  # the same recordings
     where = {"scenarios_dir": (tmp_path,)}
@@ -298,7 +298,9 @@ def test_a_familys_model_table_sets_the_networks_defaults_under_set(tmp_path):
     override = {"model": {"residual": True}}
     config = ExperimentConfig("loo_plain_zara1", ("cv",), settings=override, **where)
     assert config.model_config().residual is True
-    assert ExperimentConfig("eth_ucy_loo_zara1", ("cv",)).model_config().residual is True
+    shipped = ExperimentConfig("eth_ucy_loo_zara1", ("cv",)).model_config()
+    assert shipped.residual is True and shipped.noise_per == "scene"  # the family's own table
+    assert ExperimentConfig("crowd_noise_0.1", ("cv",)).model_config().noise_per == "agent"
     with pytest.raises(InputError, match="set different \\[model\\] defaults"):
         ExperimentConfig("eth_ucy_loo_zara1+loo_plain_zara1", ("cv",), **where)
     (tmp_path / "loo_bad.toml").write_text(plain.replace("residual = false", "resdual = false"))
