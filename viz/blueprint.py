@@ -8,12 +8,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import rerun.blueprint as rrb
+
+from c2inet.lazy import lazy_module
+
+rrb = lazy_module("rerun.blueprint")  # a run that does not record never loads Rerun
 
 Bounds = tuple[float, float, float, float]  # x_min, x_max, y_min, y_max
-# no legend drawn inside the plots: with a curve per task and method it covers the curves
-# wherever it sits; the legend document beside them names the colours and shades instead
-NO_LEGEND = rrb.PlotLegend(visible=False)
 SCENE_COLUMNS = 3  # the scenes and the rollout in a grid of near-square panels
 
 
@@ -78,6 +78,9 @@ def default_blueprint(
         for task in tasks
     ]
     curves = curve_views(methods)
+    # no legend inside the plots: with a curve per task and method it covers the curves wherever
+    # it sits; the legend document beside them names the colours and shades instead
+    no_legend = rrb.PlotLegend(visible=False)
     return rrb.Blueprint(
         rrb.Horizontal(
             rrb.Tabs(*tabs),
@@ -85,7 +88,7 @@ def default_blueprint(
                 rrb.Tabs(
                     *(
                         rrb.TimeSeriesView(
-                            origin="/curves", contents=c, name=n, plot_legend=NO_LEGEND
+                            origin="/curves", contents=c, name=n, plot_legend=no_legend
                         )
                         for n, c in curves
                     ),

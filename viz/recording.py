@@ -22,20 +22,27 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import rerun as rr
-import rerun.blueprint as rrb
 
 from c2inet.errors import InputError
 from c2inet.files import write_atomic
+from c2inet.lazy import lazy_module
 from viz.blueprint import Bounds, scale_bar
 from viz.colours import FUTURE, OBSERVED, faint, legend_markdown, task_shade
 from viz.live import spawn_viewer, viewer_url
 from viz.loggers import diagnostic_scalars
 
+# Rerun loads where a recording starts: a run with --no-record never pays for it
+rr = lazy_module("rerun")
+rrb = lazy_module("rerun.blueprint")
+
 Colour = tuple[int, int, int]
 SAMPLES, BEST, TRUTH, SCALE = 10.0, 20.0, 30.0, 40.0  # draw orders: higher is drawn above
-THIN = rr.Radius.ui_points(1.0)  # a sample line, whatever the scene's size
 SCALE_COLOUR = (110, 110, 110)  # a mid grey, read on the viewer's light and dark backgrounds
+
+
+def _thin():
+    """A sample line's width: one point on screen, whatever the scene's size."""
+    return rr.Radius.ui_points(1.0)
 
 
 def _strips(paths: np.ndarray) -> list[np.ndarray]:
@@ -185,7 +192,7 @@ class RunRecorder:
         self._time(**when, frame=obs_len - 1)
         paths = _from_last_observed(last_obs, pred)
         samples = rr.LineStrips2D(
-            _strips(paths), colors=faint(colour), radii=THIN, draw_order=SAMPLES
+            _strips(paths), colors=faint(colour), radii=_thin(), draw_order=SAMPLES
         )
         self.rec.log(f"{base}/predictions", samples)
         chosen = paths[best, np.arange(paths.shape[1])]
@@ -202,7 +209,7 @@ class RunRecorder:
         paths = [run for agent in positions.transpose(1, 0, 2) for run in _finite_runs(agent)]
         self.rec.log(
             f"rollouts/{task}/truth/paths",
-            rr.LineStrips2D(paths, colors=FUTURE, radii=THIN, draw_order=TRUTH),
+            rr.LineStrips2D(paths, colors=FUTURE, radii=_thin(), draw_order=TRUTH),
             static=True,
         )
         present = ~np.isnan(positions[..., 0])
