@@ -75,7 +75,9 @@ class Predictor(nn.Module):
             return torch.randn(samples, batch.num_scenes, size, device=device)[:, batch.scene_of]
         return torch.randn(samples, batch.obs.shape[1], size, device=device)
 
-    def _context_with_noise(self, context: torch.Tensor, samples: int, batch: Batch):
+    def _context_with_noise(
+        self, context: torch.Tensor, samples: int, batch: Batch
+    ) -> torch.Tensor:
         noise = self.noise(samples, batch)
         return torch.cat([context.expand(samples, *context.shape), noise], -1)
 
