@@ -43,9 +43,9 @@ class ModelConfig:
     # network is built (auto: compiled on the CPU, tensor elsewhere) and written to the run card
     kernels: str = "auto"
     latent_dim: int = 16  # noise size of the baselines; C2INet uses z_dim + c_dim
-    # the baselines' noise: one draw per agent, or one per scene shared by its agents (STGAT's
-    # and Social-GAN's "global" noise, whose sample moves a whole scene, as a best-of-K per scene
-    # scores it)
+    # the baselines' noise: one draw per agent, or one per scene shared by its agents (STGAT's,
+    # Social-GAN's "global" option: a sample moves a whole scene, as a best-of-K per scene scores
+    # it)
     noise_per: str = "agent"
     z_dim: int = 8
     c_dim: int = 8
