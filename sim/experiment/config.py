@@ -64,7 +64,7 @@ class ExperimentConfig:
         if not self.specs:  # parsed here, once: a bad scenario or data override fails now
             raise InputError(f"scenario {self.scenario!r}: no domain")
         family = self.family_train
-        self.family_model  # noqa: B018  (a family's bad [model] key names its file, now)
+        self._family_table("model")  # a family's bad [model] key names its file, now
         epochs, k = (2, 5) if self.quick else (family.get("epochs", 20), family.get("k", 20))
         fill(self, "epochs", self.epochs if self.epochs is not None else epochs)
         fill(self, "k", self.k if self.k is not None else k)

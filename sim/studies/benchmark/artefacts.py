@@ -16,13 +16,10 @@ from typing import Any
 
 from c2inet.errors import InputError, one_line
 from c2inet.files import file_digest, write_text_atomic
-from c2inet.lazy import lazy_module
+from c2inet.methods.base import get_method
 from sim.experiment.folders import MAX_CONFIG_BYTES
 from sim.experiment.tuning import search_space
-
-# loaded on first use: a command that stops at bad input or answers --help does not pay for it
-methods_base = lazy_module("c2inet.methods.base")
-bench_presets = lazy_module("sim.studies.benchmark.presets")
+from sim.studies.benchmark.presets import BATCH, PRESETS, REPLAY_BUDGET
 
 FORMAT = 1
 SHIPPED = Path(__file__).parent / "tunings"  # the package's artefacts, one a preset
@@ -186,12 +183,9 @@ def tuned_settings(given: str, methods: tuple[str, ...], tasks: int) -> tuple[di
 
 def _board_settings(preset: str, methods: tuple[str, ...], tasks: int) -> dict[str, dict]:
     """What a preset's board sets beside the tuning: batch, data sizes, replay budget."""
-    settings = {
-        "train": {"batch_scenes": bench_presets.BATCH},
-        "data": dict(bench_presets.PRESETS[preset].data),
-    }
+    settings = {"train": {"batch_scenes": BATCH}, "data": dict(PRESETS[preset].data)}
     for method in methods:
-        options = methods_base.get_method(method).replay_options(bench_presets.REPLAY_BUDGET, tasks)
+        options = get_method(method).replay_options(REPLAY_BUDGET, tasks)
         if options:
             settings[method] = dict(options)
     return settings

@@ -7,13 +7,10 @@ from __future__ import annotations
 
 from typing import Any
 
-from c2inet.lazy import lazy_module
 from c2inet.report import COMPARED, REFERENCE, compare
 from c2inet.significance import ALPHA, holm, interval, interval_width, paired, sign_flip
-
-# loaded on first use: a command that stops at bad input or answers --help does not pay for it
-design = lazy_module("sim.experiment.design")
-tuning = lazy_module("sim.experiment.tuning")
+from sim.experiment.design import near_bound
+from sim.experiment.tuning import search_space
 
 
 def adjust(comparison: dict[str, dict[str, Any]]) -> None:
@@ -48,11 +45,11 @@ def add_sign_flips(comparison: dict[str, dict[str, Any]], summaries: dict[str, d
 def bounds_of(method: str, settings: dict[str, dict[str, Any]]) -> dict[str, str]:
     """The chosen settings of ``method`` within 5 % of a bound of its search space: knob ->
     ``low`` or ``high`` (a mark on the board, and a range to widen)."""
-    space, marks = tuning.search_space(method), {}
+    space, marks = search_space(method), {}
     for scope, values in settings.items():
         for key, value in values.items():
             name = key if scope == method else f"{scope}.{key}"
-            side = design.near_bound(space[name], value) if name in space else None
+            side = near_bound(space[name], value) if name in space else None
             if side:
                 marks[name] = side
     return marks
