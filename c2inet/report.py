@@ -17,6 +17,10 @@ from c2inet.significance import interval, paired
 
 POINT_RULE = f"max(K, {POINT_DRAWS}) sampled futures"
 COMPARED = ("ade", "ade_k1")  # the metrics compared over seeds (best of K, point prediction)
+# what a board may rank by and its tuning score, in words: the point prediction's ADE (every
+# simulated preset), or the best of K (ETH-UCY's published protocol; its learners train on the
+# variety loss, whose point prediction no published model has above constant velocity)
+RANKABLE = {"ade_k1": "the point prediction (K = 1)", "ade": "best of K"}
 REFERENCE = "finetune"  # every method is compared with it, paired over seeds
 
 

@@ -68,13 +68,16 @@ class Windowing:
     0.1). ``min_agents``: windows with fewer agents present throughout are dropped, in every
     split (2 is sgan's protocol, which drops lone agents). ``val_share``: for a family without
     validation files, the last share of the training windows, in the recording's order, held out
-    as the validation split (the windows overlapping it dropped from training), in [0, 0.5].
+    as the validation split (the windows overlapping it dropped from training), in [0, 0.5];
+    ``val_stride``: frames between two of those held-out windows (1: every frame, as test files
+    are scored; more makes a validation-selected epoch cheaper to find).
     """
 
     stride: int = 1
     share: float = 1.0
     min_agents: int = 1
     val_share: float = 0.0
+    val_stride: int = 1
 
     def __post_init__(self):
         bounds = {
@@ -82,6 +85,7 @@ class Windowing:
             "share": (0, 1),
             "min_agents": (1, 100),
             "val_share": (0, 0.5),
+            "val_stride": (1, 100),
         }
         for key, (low, high) in bounds.items():
             value = getattr(self, key)
@@ -94,6 +98,7 @@ WINDOW_RANGES = {
     "share": "a number in (0, 1]",
     "min_agents": "an integer in [1, 100]",
     "val_share": "a number in [0, 0.5]",
+    "val_stride": "an integer in [1, 100]",
 }
 
 

@@ -119,7 +119,8 @@ def _split_family(part: str, families: dict[str, Path]) -> tuple[str, str]:
 
 def with_overrides(family: Family, overrides: dict[str, Any]) -> Family:
     """``family`` with knob defaults, split sizes (``splits.NAME`` keys) and how its scenes are
-    cut into windows (``windows.stride``, ``.share``, ``.min_agents``, ``.val_share``) replaced."""
+    cut into windows (``windows.stride``, ``.share``, ``.min_agents``, ``.val_share``,
+    ``.val_stride``) replaced."""
     if not overrides:
         return family
 

@@ -118,14 +118,15 @@ def domain_windows(domain, windowing: Windowing) -> dict[str, Windows | None]:
     """A domain's windows per split as its family's ``[windows]`` table says: training windows
     every ``stride`` frames, their first ``share``; every split without windows of fewer than
     ``min_agents`` agents; and, where the domain has no validation split and ``val_share`` > 0,
-    the training windows' last ``val_share`` held out as one (the windows that share frames
-    with it dropped from training, so that no validation frame is trained on)."""
+    the training windows' last ``val_share`` held out as one, a window every ``val_stride``
+    frames (the windows that share frames with it dropped from training, so that no validation
+    frame is trained on)."""
     keep = windowing.min_agents
     splits = {split: domain.windows(split, 1, 1.0, keep) for split in ("val", "test")}
     every = domain.windows("train", 1, 1.0, keep)
     if splits["val"] is None and windowing.val_share > 0 and every is not None:
         cut = len(every) - math.ceil(windowing.val_share * len(every))
-        splits["val"] = every.subset(np.arange(cut, len(every)))
+        splits["val"] = every.subset(np.arange(cut, len(every), windowing.val_stride))
         gap = max(cut - (OBS_LEN + PRED_LEN - 1), 0)  # a window shares frames with the 19 before
         train = every.subset(np.arange(0, gap, windowing.stride))
         if windowing.share < 1:

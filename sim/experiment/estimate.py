@@ -106,6 +106,12 @@ def method_seconds(config, name: str, tasks: list[Task], warm_up: bool = False) 
                 if task.val is not None and train.val_every:  # the tasks seen, every val_every
                     val = _seconds(lambda t=task: evaluate(model, t.val, 1, 0, point_draws=0))
                     total += val * config.epochs / train.val_every * (n - i)
+                if task.val is not None and train.select == "val":  # select_k samples, each epoch
+                    picks = train.select_k
+                    select = _seconds(
+                        lambda t=task, k=picks: evaluate(model, t.val, k, 0, point_draws=0)
+                    )
+                    total += select * config.epochs
 
         def evaluation(task: Task) -> None:
             evaluate_all(model, task.test, config.k, 0, variants=train.test_rules)

@@ -67,7 +67,7 @@ def race_best(
         scores = [trial.value]
         for _ in range(tune.race_seeds):
             _, (job,) = next(done)
-            final = round(float(objective_so_far(job.result)[-1]), 6)
+            final = round(float(objective_so_far(job.result, tune.metric)[-1]), 6)
             scores.append(final if math.isfinite(final) else math.inf)
         raced.setdefault(method, {})[trial.number] = scores
     return raced

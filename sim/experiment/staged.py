@@ -27,7 +27,13 @@ from sim.experiment.config import Execution, ExperimentConfig
 from sim.experiment.design import Design, choose, near_bound
 from sim.experiment.folders import MARKER, mark_run
 from sim.experiment.sweep import layered, plan, run_together
-from sim.experiment.trials import TRIAL_TRAIN, as_settings, objective_so_far, validation_inputs
+from sim.experiment.trials import (
+    TRIAL_TRAIN,
+    as_settings,
+    check_metric,
+    objective_so_far,
+    validation_inputs,
+)
 from sim.experiment.tuning import default_params, search_space, write_chosen
 
 
@@ -71,6 +77,7 @@ class Runner:
     design: Design
     out: Path
     execution: Execution
+    metric: str = "ade_k1"  # what the board ranks (c2inet.report.RANKABLE)
     curricula: dict[int, Any] = field(default_factory=dict)
 
     def score(self, wanted: list[tuple[MethodSearch, str, dict[str, Any]]]) -> list[float]:
@@ -87,7 +94,7 @@ class Runner:
                     owners.append((search, stage, params, draw, name))
         done = run_together(planned, self.execution, resume=True, argv=[], figures=False)
         for (search, stage, params, draw, name), (_, (job,)) in zip(owners, done, strict=True):
-            final = float(objective_so_far(job.result)[-1])
+            final = float(objective_so_far(job.result, self.metric)[-1])
             search.runs[name] = {
                 "stage": stage,
                 "params": params,
@@ -123,16 +130,20 @@ class Runner:
 
 
 def run_staged(
-    base: ExperimentConfig, design: Design, out: Path, execution: Execution | None = None
+    base: ExperimentConfig,
+    design: Design,
+    out: Path,
+    execution: Execution | None = None,
+    metric: str = "ade_k1",
 ) -> dict[str, dict[str, Any]]:
     """Tune every method of ``base`` (its scenario: the tuning curriculum; its seed: the
-    tuning's) by ``design`` under ``out``, resuming what a killed tuning left; returns each
-    method's choice, also written to ``out/tuning.json``."""
+    tuning's) by ``design`` under ``out``, scored by ``metric``, resuming what a killed tuning
+    left; returns each method's choice, also written to ``out/tuning.json``."""
     out.mkdir(parents=True, exist_ok=True)
     if not (out / MARKER).is_file():  # ours, for --overwrite
         mark_run(out)
     base = replace(base, seeds=1, record=False)
-    runner = Runner(base, design, out, execution or Execution())
+    runner = Runner(base, design, out, execution or Execution(), check_metric(metric))
     searches = []
     for method in base.methods:
         space = search_space(method)

@@ -1,5 +1,6 @@
 """What a tuning trial is: a one-seed experiment on validation data (the test splits replaced,
-or the end of the training scenes held out), lean, scored by its final point-prediction ADE;
+or the end of the training scenes held out), lean, scored by its final ADE (the point
+prediction's, or the best of K where the board ranks that);
 and what its finished runs cost. Shared by the tuning (``tuning.py``) and its race
 (``race.py``)."""
 
@@ -14,6 +15,7 @@ import numpy as np
 
 from c2inet.errors import InputError
 from c2inet.metrics import average_seen
+from c2inet.report import RANKABLE
 from c2inet.trainer import Result, Task
 from sim.experiment.curriculum import Curriculum, JobInputs
 
@@ -49,10 +51,17 @@ def validation_inputs(curriculum: Curriculum) -> JobInputs:
     return JobInputs(tasks, [])
 
 
-def objective_so_far(result: Result) -> np.ndarray:
-    """After each task a trial learnt, its average point-prediction ADE over the tasks so far
-    (the last one, after the last task, is the objective)."""
-    return average_seen(result.matrices["ade_k1"][: len(result.summaries)])  # one a task learnt
+def check_metric(metric: str) -> str:
+    """``metric`` if a board can rank by it, else one line naming the choices."""
+    if metric not in RANKABLE:
+        raise InputError(f"metric {metric!r}: expected one of {', '.join(RANKABLE)}")
+    return metric
+
+
+def objective_so_far(result: Result, metric: str = "ade_k1") -> np.ndarray:
+    """After each task a trial learnt, its average ADE (``metric``: the point prediction's or
+    the best of K) over the tasks so far (the last one, after the last task, is the objective)."""
+    return average_seen(result.matrices[metric][: len(result.summaries)])  # one a task learnt
 
 
 def trial_results(out: Path, method: str) -> list[dict[str, Any]]:

@@ -63,6 +63,7 @@ from sim.experiment.sweep import Planned, layered, plan, run_together
 from sim.experiment.trials import (
     TRIAL_TRAIN,
     as_settings,
+    check_metric,
     objective_so_far,
     trial_seconds,
     validation_inputs,
@@ -86,8 +87,14 @@ class TuneConfig:
     race: int = 0  # the best trials of a method scored again on more seeds (0: none)
     race_seeds: int = 2  # the seeds each raced trial gets beyond its own
     sampler: str = "tpe"  # after the start-up draws: Optuna's TPE, or its Gaussian process
+    metric: str = "ade_k1"  # what a trial is scored by (c2inet.report.RANKABLE)
 
     def __post_init__(self):
+        check_metric(self.metric)
+        if self.prune and self.metric != "ade_k1":
+            raise InputError(
+                "--prune stops trials on the point prediction's ADE; not with best of K"
+            )
         if self.trials < 1:
             raise InputError(f"trials must be at least 1, got {self.trials}")
         if self.warmup_tasks < 0:
@@ -255,7 +262,7 @@ def run_tuning(
         costs = [trial_seconds(out, method) for method, _ in asked]  # the longest start first
         done = run_together(planned, execution, resume=True, argv=[], costs=costs, figures=False)
         for (method, trial), (_, (job,)) in zip(asked, done, strict=True):  # in index order
-            tell(studies[method], trial, job.result, tasks)
+            tell(studies[method], trial, job.result, tasks, tune.metric)
     raced = race_best(tune, out, execution, studies, tuned) if tune.race else {}
     return write_chosen(out, base.methods, {m: choice(m, studies[m], raced.get(m)) for m in tuned})
 
@@ -292,12 +299,12 @@ def open_studies(tune: TuneConfig, out: Path, methods: list[str]) -> dict[str, A
     return studies
 
 
-def tell(study, trial, result: Result, tasks: int) -> None:
+def tell(study, trial, result: Result, tasks: int, metric: str = "ade_k1") -> None:
     """Report a finished trial's objective after each task it learnt and close it: complete,
     or pruned if it stopped early. A diverged trial is the worst there is, not a failure to ask
     again (same seed, same history: the same settings, for ever)."""
 
-    curve = [round(float(v), 6) for v in objective_so_far(result)]  # as metrics.json has them
+    curve = [round(float(v), 6) for v in objective_so_far(result, metric)]  # as metrics.json
     for task, value in enumerate(curve):
         trial.report(value if math.isfinite(value) else math.inf, task)
     if len(curve) < tasks:

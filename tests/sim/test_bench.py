@@ -710,6 +710,8 @@ def test_the_ranking_transfer_is_one_for_one_ranking_and_falls_as_it_reverses(sc
     boards = root / "docs" / "leaderboards"
     text = ranking.report(boards / "density", boards / "density-60")
     assert "Kendall's tau +0.65" in text and "| coresets | 0.423 | 1 | 0.423 | 1 | +0 |" in text
+    best = ranking.report(boards / "density", boards / "density-60", metric="ade")
+    assert "by final ADE of best of K" in best and "| coresets | 0.423 |" not in best
     assert ranking.main([str(root), str(boards / "density")]) == 2  # no board: one line
 
 

@@ -255,7 +255,12 @@ def test_windows_drop_lone_agents_when_asked_and_hold_out_a_validation_share(tmp
     np.testing.assert_array_equal(held.val.positions, whole.train.subset(
         np.arange(len(whole.train) - len(held.val), len(whole.train))).positions)  # fmt: skip
     assert len(held.train) == len(whole.train) - len(held.val) - 19  # 19 overlap the first
-    for bad in ({"windows.min_agents": 0}, {"windows.val_share": 0.9}):
+    thin = {"windows.val_share": 0.2, "windows.val_stride": 5}  # a held-out window every 5th frame
+    (sparse,) = learner_tasks("eth_ucy_eth", data=thin, cache=tmp_path)
+    assert len(sparse.val) == -(-len(held.val) // 5) and len(sparse.train) == len(held.train)
+    np.testing.assert_array_equal(sparse.val.positions, held.val.subset(
+        np.arange(0, len(held.val), 5)).positions)  # fmt: skip
+    for bad in ({"windows.min_agents": 0}, {"windows.val_share": 0.9}, {"windows.val_stride": 0}):
         with pytest.raises(InputError, match="windows"):
             parse_scenario("eth_ucy_eth", overrides=bad)
 

@@ -146,6 +146,13 @@ def add_evaluation_options(p) -> None:
     """What every method keeps, the references' seeds and the decisive pair."""
     g = p.add_argument_group("evaluation")
     g.add_argument(
+        "--metric",
+        choices=("ade_k1", "ade"),  # c2inet.report.RANKABLE, not imported by --help
+        help="what the board ranks and its tuning scores: ade_k1, the point prediction's final "
+        "ADE, or ade, the best of K (default: the preset's; eth-ucy ranks ade, the published "
+        "protocol there)",
+    )
+    g.add_argument(
         "--replay-budget",
         type=bounded_int(0, 1_000_000),
         default=REPLAY_BUDGET,
@@ -251,6 +258,8 @@ class Benchmark(Study):
             sampler=args.sampler,
             tuned_from=tuned_from,
             design=design,
+            metric=args.metric or (preset.metric if preset else "ade_k1"),
+            recipe=preset.recipe if preset else {},
         )
         if bench.borrowed:  # say what is taken from another board, method by method
             for method, chosen in bench.borrowed[0].items():

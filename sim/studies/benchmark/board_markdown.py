@@ -1,12 +1,19 @@
 """The fair benchmark's leaderboard as Markdown (``leaderboard.md``): what ran, the ranking on
-the point prediction with both tests, best of K, the references, the decisive pair, the chosen
-settings and cost; and the tuned Table 2 over several committed boards."""
+its metric (the point prediction, or best of K) with both tests, the other metric, the
+references, the decisive pair, the chosen settings and cost; and the tuned Table 2 over several
+committed boards."""
 
 from __future__ import annotations
 
 from typing import Any
 
-from c2inet.report import comparison_rows, markdown_table
+from c2inet.report import COMPARED, RANKABLE, comparison_rows, markdown_table
+
+
+def ranked_metric(board: dict[str, Any]) -> str:
+    """What ``board`` ranks by: ``ade_k1`` (the point prediction; every board before the metric
+    was an option) or ``ade`` (best of K)."""
+    return board.get("metric", "ade_k1")
 
 
 def _data_text(data: dict[str, Any]) -> str:
@@ -97,7 +104,8 @@ def _protocol_text(board: dict[str, Any]) -> str:
         f"{board['k']}, {tuning}, "
         f"then {board['seeds']} seeds a method, seed s drawing its own data for every method"
         f"{_data_text(board.get('data', {}))}. `--set`: {given}. "
-        f"Ranked by final average ADE of the point prediction (K = 1). Intervals are 95 %; p is "
+        f"Ranked by final average ADE of {RANKABLE[ranked_metric(board)]}. Intervals are 95 %; "
+        "p is "
         f"a paired t-test against {board['reference']} over the same seeds and the sign-flip "
         f"permutation test's beside it (no normality assumed), each Holm-adjusted over the "
         f"board, `*` below {board['alpha']}; a difference whose interval holds 0 is within "
@@ -107,27 +115,33 @@ def _protocol_text(board: dict[str, Any]) -> str:
 
 
 def _rankings(board: dict[str, Any]) -> list[str]:
-    """The ranking on the point prediction, then the board ordered by best of K."""
+    """The ranking on the board's metric, then the board ordered by the other one."""
+    metric = ranked_metric(board)
+    other = next(m for m in COMPARED if m != metric)
     comparison = {e["method"]: e for e in board["entries"]}
-    ranked = comparison_rows(comparison, "ade_k1")  # the entries are in rank order
+    ranked = comparison_rows(comparison, metric)  # the entries are in rank order
     ranked[0].insert(4, "sign-flip p")
     for row, e in zip(ranked[1:], board["entries"], strict=True):
-        p = e["final_ade_k1"].get("p_signflip")
+        p = e[f"final_{metric}"].get("p_signflip")
         row.insert(4, "-" if p is None else f"{p:.3f}" + (" *" if p < board["alpha"] else ""))
         row[0] += " †" if e.get("at_bound") else ""
     ranks = ["rank", *(str(e["rank"]) for e in board["entries"])]
-    by_best_of_k = dict(sorted(comparison.items(), key=lambda item: item[1]["final_ade"]["mean"]))
+    by_other = dict(sorted(comparison.items(), key=lambda item: item[1][f"final_{other}"]["mean"]))
     return [
-        "Point prediction (K = 1):",
+        f"{_capital(RANKABLE[metric])} (ranked):",
         "",
         markdown_table([[rank, *row] for rank, row in zip(ranks, ranked, strict=True)]),
         "",
         *_bound_note(board),
-        "Best of K (ordered by its own final average):",
+        f"{_capital(RANKABLE[other])} (ordered by its own final average):",
         "",
-        markdown_table(comparison_rows(by_best_of_k, "ade")),
+        markdown_table(comparison_rows(by_other, other)),
         "",
     ]
+
+
+def _capital(text: str) -> str:
+    return text[0].upper() + text[1:]
 
 
 def _bound_note(board: dict[str, Any]) -> list[str]:
@@ -174,7 +188,8 @@ def _decisive(board: dict[str, Any]) -> list[str]:
         return []
     bounds = d["interval"]
     return [
-        f"Decisive pair, `{d['pair'][0]}` minus `{d['pair'][1]}` (final K = 1 ADE, paired, "
+        f"Decisive pair, `{d['pair'][0]}` minus `{d['pair'][1]}` (final ADE of "
+        f"{RANKABLE[ranked_metric(board)]}, paired, "
         f"{d['seeds']} seeds, added until the interval is narrower than {d['width']:g} m): "
         f"{d['difference']:+.4f} m"
         + ("" if bounds is None else f" [{bounds[0]:+.4f}, {bounds[1]:+.4f}]")
@@ -251,7 +266,8 @@ def leaderboard_markdown(board: dict[str, Any]) -> str:
 
 def boards_table(boards: dict[str, dict[str, Any]]) -> str:
     """The tuned Table 2: one column per committed board (``leaderboard.json``, by name), each
-    ranked method's final K = 1 ADE with its rank and ``*`` where it differs from fine-tuning
+    ranked method's final ADE on its board's metric (K = 1 unless the board ranks best of K),
+    its rank and ``*`` where it differs from fine-tuning
     after Holm's correction, methods ordered by their mean rank; then the decisive pairs and the
     references. Made from the boards alone, so REPRODUCTION can never disagree with them."""
     names = list(boards)
@@ -259,7 +275,7 @@ def boards_table(boards: dict[str, dict[str, Any]]) -> str:
     ranks: dict[str, list[int]] = {}
     for name, board in boards.items():
         for entry in board["entries"]:
-            cell = entry["final_ade_k1"]
+            cell = entry[f"final_{ranked_metric(board)}"]
             mark = " *" if cell.get("significant") else ""
             cells.setdefault(entry["method"], {})[name] = (
                 f"{cell['mean']:.3f} ({entry['rank']}){mark}"
@@ -280,7 +296,10 @@ def boards_table(boards: dict[str, dict[str, Any]]) -> str:
             )
     references = [
         f"- `{name}`: "
-        + ", ".join(f"{r['method']} {r['final_ade_k1']['mean']:.3f}" for r in board["references"])
+        + ", ".join(
+            f"{r['method']} {r[f'final_{ranked_metric(board)}']['mean']:.3f}"
+            for r in board["references"]
+        )
         for name, board in boards.items()
         if board.get("references")
     ]

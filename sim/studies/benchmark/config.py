@@ -16,7 +16,7 @@ from c2inet.report import REFERENCE
 from sim.experiment.config import ExperimentConfig
 from sim.experiment.design import Design
 from sim.experiment.sweep import layered
-from sim.experiment.trials import TRIAL_TRAIN
+from sim.experiment.trials import TRIAL_TRAIN, check_metric
 from sim.experiment.tuning import SAMPLERS, TuneConfig
 from sim.scenario import parse_scenario
 from sim.studies.benchmark.artefacts import read_json, read_tuning, shown, tunable_only
@@ -114,6 +114,10 @@ class BenchConfig:
     sampler: str = SAMPLER
     tuned_from: Path | None = None
     design: Design | None = None
+    # what the board ranks and its tuning scores (c2inet.report.RANKABLE), and the
+    # preset's training recipe (``train``, ``model`` settings) under the user's own --set
+    metric: str = "ade_k1"
+    recipe: dict[str, dict[str, Any]] = field(default_factory=dict)
     given: dict[str, Any] = field(init=False, compare=False, repr=False)  # the user's --set
     borrowed: tuple | None = field(init=False, compare=False, repr=False)  # (chosen, source)
 
@@ -125,10 +129,21 @@ class BenchConfig:
         borrowed = None
         if self.tuned_from is not None:
             borrowed = borrowed_tuning(Path(self.tuned_from), self.base, self.ranked)
+            scored = (borrowed[1].get("design") or {}).get("metric", "ade_k1")
+            if scored != self.metric:
+                raise InputError(
+                    f"the tuning in {self.tuned_from} was scored on {scored}, but this board "
+                    f"ranks {self.metric}: tune anew (--retune) or rank it (--metric {scored})"
+                )
         object.__setattr__(self, "borrowed", borrowed)
 
     def _check(self) -> None:
         """One line for an option out of range, before anything runs."""
+        check_metric(self.metric)
+        if self.prune and self.metric != "ade_k1":
+            raise InputError(
+                "--prune stops trials on the point prediction's ADE; not with best of K"
+            )
         if REFERENCE not in self.ranked:
             raise InputError(
                 f"methods: the board tests every method against {REFERENCE}; include it"
@@ -161,6 +176,8 @@ class BenchConfig:
         """The user's settings over the protocol's: batch, the preset's data sizes, the equal
         replay budget, joint-scratch trained once."""
         settings = dict(self.base.settings)
+        for scope, values in self.recipe.items():
+            settings[scope] = {**values, **settings.get(scope, {})}
         settings["train"] = {"batch_scenes": BATCH, **settings.get("train", {})}
         if self.data:
             settings["data"] = {**self.data, **settings.get("data", {})}
@@ -206,6 +223,7 @@ class BenchConfig:
             race=self.race,
             race_seeds=self.race_seeds,
             sampler=self.sampler,
+            metric=self.metric,
         )
 
     def key(self) -> str:
@@ -225,6 +243,8 @@ class BenchConfig:
             protocol["sampler"] = self.sampler
         if self.design is not None:
             protocol["design"] = self.design.to_json()
+        if self.metric != "ade_k1":  # the point-prediction boards keep their keys
+            protocol["metric"] = self.metric
         text = json.dumps(protocol, sort_keys=True, default=str)
         return f"{self.name}-{hashlib.sha256(text.encode()).hexdigest()[:12]}:"
 
@@ -264,6 +284,8 @@ class BenchConfig:
             **({} if self.sampler == "tpe" else {"sampler": self.sampler}),
             **({"tuned_from": self.borrowed[1]["sha256"]} if self.borrowed else {}),
             **({"design": self.design.to_json()} if self.design else {}),
+            **({} if self.metric == "ade_k1" else {"metric": self.metric}),
+            **({"recipe": self.recipe} if self.recipe else {}),
         }
 
 

@@ -25,19 +25,21 @@ def adjust(comparison: dict[str, dict[str, Any]]) -> None:
             cell["significant"] = p is not None and p < ALPHA
 
 
-def add_sign_flips(comparison: dict[str, dict[str, Any]], summaries: dict[str, dict]) -> None:
-    """Beside each t-test on the final point-prediction ADE, the sign-flip permutation test's p
-    (``p_signflip_raw``) and its Holm-adjusted value over the board (``p_signflip``): a verdict
+def add_sign_flips(
+    comparison: dict[str, dict[str, Any]], summaries: dict[str, dict], metric: str = "ade_k1"
+) -> None:
+    """Beside each t-test on the ranked final ADE (``metric``), the sign-flip permutation test's
+    p (``p_signflip_raw``) and its Holm-adjusted value over the board (``p_signflip``): a verdict
     that needs the t-test's normality shows as a star the permutation test does not give."""
     tested = [name for name in comparison if name != REFERENCE]
-    reference = summaries[REFERENCE]["final_ade_k1_per_seed"]
+    reference = summaries[REFERENCE][f"final_{metric}_per_seed"]
     raw = []
     for name in tested:  # a test-time rule's row (``METHOD, RULE``) is not a board's method
-        values = None if "," in name else summaries[name]["final_ade_k1_per_seed"]
+        values = None if "," in name else summaries[name][f"final_{metric}_per_seed"]
         differences = [a - b for a, b in zip(values or [], reference, strict=False)]
         raw.append(sign_flip(differences) if values else None)
     for name, p, adjusted in zip(tested, raw, holm(raw), strict=True):
-        cell = comparison[name]["final_ade_k1"]
+        cell = comparison[name][f"final_{metric}"]
         cell["p_signflip_raw"] = None if p is None else round(p, 6)
         cell["p_signflip"] = None if adjusted is None else round(adjusted, 6)
 
@@ -74,10 +76,12 @@ def reference_rows(summaries: dict[str, dict[str, Any]], names: tuple[str, ...])
     return rows
 
 
-def decide(pair: tuple[str, str], summaries: dict[str, dict[str, Any]], width: float) -> dict:
-    """The decisive pair over all the seeds it ran: the paired difference of final
-    point-prediction ADE (first minus second), its interval, its width and what it says."""
-    a, b = (summaries[m]["final_ade_k1_per_seed"] for m in pair)
+def decide(
+    pair: tuple[str, str], summaries: dict[str, dict[str, Any]], width: float, metric: str
+) -> dict:
+    """The decisive pair over all the seeds it ran: the paired difference of the ranked final
+    ADE (``metric``; first minus second), its interval, its width and what it says."""
+    a, b = (summaries[m][f"final_{metric}_per_seed"] for m in pair)
     test = paired(a, b)
     low, high = test.interval or (float("-inf"), float("inf"))
     narrow = interval_width([x - y for x, y in zip(a, b, strict=True)]) < width
@@ -118,6 +122,7 @@ def protocol(bench, run: dict[str, Any]) -> dict[str, Any]:
         "epochs": base.epochs,
         "batch_scenes": train.batch_scenes,
         "k": base.k,
+        "metric": bench.metric,
         "data": base.settings.get("data", {}),
         "trials": bench.trials,
         **({"design": bench.design.to_json()} if bench.design and not bench.borrowed else {}),
@@ -144,13 +149,14 @@ def leaderboard(
     decisive: dict[str, dict[str, Any]] | None,
     run: dict[str, Any],
 ) -> dict[str, Any]:
-    """The ranked methods by final point-prediction ADE over the common seeds, each with its
-    interval, the Holm-adjusted paired test against fine-tuning, forgetting, memory, CPU cost
-    and the settings tuning chose; the references apart; the decisive pair; what ran."""
+    """The ranked methods by their final ADE (the point prediction's, or the best of K where
+    the preset ranks that) over the common seeds, each with its interval, the Holm-adjusted
+    paired test against fine-tuning, forgetting, memory, CPU cost and the settings tuning chose;
+    the references apart; the decisive pair; what ran."""
     comparison = compare({m: summaries[m] for m in bench.ranked})
     adjust(comparison)
-    add_sign_flips(comparison, summaries)
-    ranked = sorted(comparison, key=lambda name: comparison[name]["final_ade_k1"]["mean"])
+    add_sign_flips(comparison, summaries, bench.metric)
+    ranked = sorted(comparison, key=lambda name: comparison[name][f"final_{bench.metric}"]["mean"])
     entries = []
     for rank, name in enumerate(ranked, 1):
         method = name.split(",")[0]
@@ -171,6 +177,6 @@ def leaderboard(
         **protocol(bench, run),
         "entries": entries,
         "references": reference_rows(summaries, bench.references),
-        "decisive": decisive and decide(bench.compare, decisive, bench.width),
+        "decisive": decisive and decide(bench.compare, decisive, bench.width, bench.metric),
         "run": run,
     }

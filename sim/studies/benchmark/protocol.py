@@ -110,7 +110,7 @@ class Evaluation:
     def differences(self, pair: tuple[str, str]) -> list[float]:
         """The paired differences of final point-prediction ADE, first minus second, per seed
         both have."""
-        a, b = (self.summary(m)["final_ade_k1_per_seed"] for m in pair)
+        a, b = (self.summary(m)[f"final_{self.bench.metric}_per_seed"] for m in pair)
         return [x - y for x, y in zip(a, b, strict=False)]
 
 
@@ -177,7 +177,9 @@ def tune(bench: BenchConfig, out: Path, execution: Execution) -> dict[str, dict[
     if bench.borrowed:
         return bench.borrowed[0]
     if bench.design is not None:
-        return run_staged(bench.tuning_base(), bench.design, out / "tuning", execution)
+        return run_staged(
+            bench.tuning_base(), bench.design, out / "tuning", execution, bench.metric
+        )
     return run_tuning(bench.tuning(), out / "tuning", execution)
 
 
@@ -213,6 +215,8 @@ def write_tuning_artefact(
             "draws": 1,
         }  # fmt: skip
     )
+    if bench.metric != "ade_k1":  # what its runs were scored by, where not the point prediction
+        design = {**design, "metric": bench.metric}
     path = out / f"{bench.name}.json"
     methods = {m: chosen[m] for m in bench.ranked}
     if path.is_file():  # a resumed board: the artefact of the tuning it finished stays as made

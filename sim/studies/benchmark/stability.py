@@ -23,11 +23,11 @@ from c2inet.significance import ALPHA, LEVEL, holm, over_tunings, paired
 pq = lazy_module("pyarrow.parquet")
 
 
-def finals(board: Path) -> dict[str, dict[int, float]]:
-    """Per method, each evaluation seed's final average point-prediction ADE (the mean over
-    every task after the curriculum's last)."""
+def finals(board: Path, metric: str = "ade_k1") -> dict[str, dict[int, float]]:
+    """Per method, each evaluation seed's final average ADE on ``metric`` (the board's: the
+    point prediction's or best of K; the mean over every task after the curriculum's last)."""
     rows = [r for r in pq.read_table(board / "results.parquet").to_pylist()
-            if r["metric"] == "ade_k1"]  # fmt: skip
+            if r["metric"] == metric]  # fmt: skip
     last = list(dict.fromkeys(r["on_task"] for r in rows))[-1]  # the curriculum's order
     cells: dict[str, dict[int, list[float]]] = {}
     for r in rows:
@@ -38,9 +38,9 @@ def finals(board: Path) -> dict[str, dict[int, float]]:
     }
 
 
-def verdict(entry: dict[str, Any]) -> str:
-    """``ahead``, ``behind`` (of fine-tuning, Holm-significant) or ``level``."""
-    cell = entry["final_ade_k1"]
+def verdict(entry: dict[str, Any], metric: str = "ade_k1") -> str:
+    """``ahead``, ``behind`` (of fine-tuning, Holm-significant on ``metric``) or ``level``."""
+    cell = entry[f"final_{metric}"]
     if not cell.get("significant"):
         return "level"
     return "ahead" if cell["difference"] < 0 else "behind"
@@ -51,7 +51,11 @@ def stability(boards: list[Path], reference: str = REFERENCE) -> dict[str, Any]:
     if len(boards) < 2:
         raise ValueError("stability: two boards or more, each its own tuning")
     metas = [json.loads((b / "leaderboard.json").read_text()) for b in boards]
-    values = [finals(b) for b in boards]
+    metrics = {m.get("metric", "ade_k1") for m in metas}
+    if len(metrics) != 1:
+        raise ValueError(f"stability: the boards rank different metrics ({', '.join(metrics)})")
+    metric = metrics.pop()
+    values = [finals(b, metric) for b in boards]
     entries = [{e["method"]: e for e in meta["entries"]} for meta in metas]
     methods = sorted(set.intersection(*(set(e) for e in entries)) - {reference})
     rows, pooled = {}, []
@@ -61,9 +65,9 @@ def stability(boards: list[Path], reference: str = REFERENCE) -> dict[str, Any]:
         pooled.append(over_tunings(differences))
         rows[method] = {
             "seeds": len(seeds),
-            "verdicts": [verdict(e[method]) for e in entries],
-            "differences": [round(e[method]["final_ade_k1"]["difference"], 6) for e in entries],
-            "p_holm": [e[method]["final_ade_k1"]["p_value"] for e in entries],
+            "verdicts": [verdict(e[method], metric) for e in entries],
+            "differences": [round(e[method][f"final_{metric}"]["difference"], 6) for e in entries],
+            "p_holm": [e[method][f"final_{metric}"]["p_value"] for e in entries],
             "tunings_differ": _tunings_differ(differences),
         }
     for method, result, p in zip(methods, pooled, holm([r.p_value for r in pooled]), strict=True):
