@@ -116,3 +116,19 @@ def test_a_metric_the_board_cannot_rank_or_prune_by_is_one_line(tmp_path):
             metric="ade",
             tuned_from=board_module.__file__.replace("leaderboard.py", "tunings/radius.json"),
         )
+
+
+def test_a_boards_folder_lends_its_tuning_to_a_board_of_its_own_metric(tmp_path):
+    """A board's folder carries its metric in ``leaderboard.json`` (its ``tuning.json`` does not):
+    a best-of-K board borrows it, a point-prediction board refuses it in one line."""
+    import json
+
+    (tmp_path / "tuning").mkdir()
+    chosen = {"finetune": {"settings": {"train": {"lr": 1e-3}}}, "cv": {"settings": {}}}
+    (tmp_path / "tuning" / "tuning.json").write_text(json.dumps(chosen))
+    (tmp_path / "leaderboard.json").write_text(json.dumps({"tune_scenario": "x", "metric": "ade"}))
+    base = ExperimentConfig("crowd_noise_0.1,0.2", methods=("finetune", "cv"))
+    lent = BenchConfig(base, metric="ade", tuned_from=tmp_path)
+    assert lent.borrowed[0]["finetune"]["settings"] == {"train": {"lr": 1e-3}}
+    with pytest.raises(InputError, match="scored on ade, but this board ranks ade_k1"):
+        BenchConfig(base, tuned_from=tmp_path)

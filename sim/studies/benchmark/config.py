@@ -68,6 +68,8 @@ def borrowed_tuning(
         tuned_on = read_json(board, option)
         if isinstance(tuned_on, dict) and isinstance(tuned_on.get("tune_scenario"), str):
             source["tune_scenario"] = tuned_on["tune_scenario"]
+        if isinstance(tuned_on, dict) and tuned_on.get("metric") in ("ade", "ade_k1"):
+            source["metric"] = tuned_on["metric"]  # what its tuning scored (K = 1 if unsaid)
     # no trial ran here: the board counts none, and says whose settings it used
     return {m: {"settings": chosen[m]["settings"], "trials": []} for m in ranked}, source
 
@@ -129,7 +131,9 @@ class BenchConfig:
         borrowed = None
         if self.tuned_from is not None:
             borrowed = borrowed_tuning(Path(self.tuned_from), self.base, self.ranked)
-            scored = (borrowed[1].get("design") or {}).get("metric", "ade_k1")
+            scored = borrowed[1].get("metric") or (borrowed[1].get("design") or {}).get(
+                "metric", "ade_k1"
+            )
             if scored != self.metric:
                 raise InputError(
                     f"the tuning in {self.tuned_from} was scored on {scored}, but this board "
