@@ -12,7 +12,7 @@ from typing import Any
 from c2inet.errors import InputError
 from c2inet.files import file_digest
 from c2inet.methods.base import get_method
-from c2inet.report import REFERENCE
+from c2inet.report import RANKABLE, REFERENCE
 from sim.experiment.config import ExperimentConfig
 from sim.experiment.design import Design
 from sim.experiment.sweep import layered
@@ -68,7 +68,7 @@ def borrowed_tuning(
         tuned_on = read_json(board, option)
         if isinstance(tuned_on, dict) and isinstance(tuned_on.get("tune_scenario"), str):
             source["tune_scenario"] = tuned_on["tune_scenario"]
-        if isinstance(tuned_on, dict) and tuned_on.get("metric") in ("ade", "ade_k1"):
+        if isinstance(tuned_on, dict) and tuned_on.get("metric") in RANKABLE:
             source["metric"] = tuned_on["metric"]  # what its tuning scored (K = 1 if unsaid)
     # no trial ran here: the board counts none, and says whose settings it used
     return {m: {"settings": chosen[m]["settings"], "trials": []} for m in ranked}, source
