@@ -71,6 +71,19 @@ class Design:
         centre = x + self.offset * width
         return _points(space, [centre - width, centre, centre + width])
 
+    def grid_runs(self, space: dict[str, Tunable | Choice]) -> int:
+        """The runs the grids of a method of search ``space`` ask: its learning rates, then
+        each further knob's first grid less the point it shares with the settings so far, on
+        every draw. An estimate's count: the defaults, a stage that extends its grid and a
+        choice fitted between its points each add a run a draw."""
+        points = 0
+        for key, dim in space.items():
+            if key == "train.lr":
+                points += self.lr_points
+            else:
+                points += len(dim.values) - 1 if isinstance(dim, Choice) else 2
+        return points * self.draws
+
     def beyond(self, space: Tunable | Choice, points: list[Any], low_side: bool) -> Any | None:
         """One point past the grid's ``low_side`` (or high) edge at the grid's spacing, clipped
         to the search space; None where the edge is already the space's bound."""

@@ -6,6 +6,7 @@ uninterrupted one, and a board that evaluates a shipped artefact without running
 import json
 import math
 import shutil
+from importlib import import_module
 
 import numpy as np
 import pytest
@@ -156,7 +157,9 @@ def test_a_board_evaluates_its_presets_shipped_tuning_and_runs_no_trial(
         shipped / "noise.json", "noise", "crowd_noise_0.1..0.6", "crowd_noise_0.05..0.55:0.1",
         Design().to_json(), 0, {"made_by": "a test"}, planted,
     )  # fmt: skip
-    monkeypatch.setattr(artefacts, "SHIPPED", shipped)
+    # on the module itself: the package's name for it is a lazy stand-in until some test
+    # imports it, and a value set on the stand-in is read by none of the module's functions
+    monkeypatch.setattr(import_module(artefacts.__name__), "SHIPPED", shipped)
     out = tmp_path / "board"
     argv = [
         "noise", "--methods", "finetune,cv", "--seeds", "2", "--quick", "--no-record",
@@ -236,13 +239,13 @@ def test_a_setting_two_stages_ask_runs_once(staged):
 
 
 def test_the_shipped_tunings_are_the_committed_boards_own():
-    """The four presets whose shipped tuning is a committed board's Optuna tuning: made from
+    """The three presets whose shipped tuning is a committed board's Optuna tuning: made from
     that board by ``from_board``, their settings equal to the board's tuning.json."""
     import tempfile
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[2]
-    for preset in ("density", "noise", "traffic", "eth-ucy"):
+    for preset in ("density", "noise", "traffic"):
         shipped = json.loads(artefacts.shipped(preset).read_text())
         board = root / "docs" / "leaderboards" / preset
         with tempfile.TemporaryDirectory() as tmp:
@@ -251,3 +254,33 @@ def test_the_shipped_tunings_are_the_committed_boards_own():
             made["methods"] == shipped["methods"] == json.loads((board / "tuning.json").read_text())
         )
         assert shipped["design"]["kind"] == "optuna" and shipped["provenance"]["sha256"]
+
+
+def test_eth_ucys_shipped_tuning_is_its_boards_staged_tuning_of_best_of_k():
+    """The eth-ucy board tuned by the staged design, scoring best of 20 as the board ranks, and
+    wrote the artefact that ships, byte for byte; no learning rate it chose sits at a bound."""
+    from pathlib import Path
+
+    board = Path(__file__).resolve().parents[2] / "docs" / "leaderboards" / "eth-ucy"
+    shipped = artefacts.shipped("eth-ucy")
+    assert shipped.read_bytes() == (board / "eth-ucy.json").read_bytes()
+    artefact = json.loads(shipped.read_text())
+    assert artefact["design"]["kind"] == "staged" and artefact["design"]["metric"] == "ade"
+    assert json.loads((board / "leaderboard.json").read_text())["metric"] == "ade"
+    tuned = {m: e for m, e in artefact["methods"].items() if "train" in e["settings"]}
+    assert len(tuned) == 16 and not any("train.lr" in e["at_bound"] for e in tuned.values())
+
+
+def test_a_tuning_is_found_by_a_presets_name_or_beside_a_staged_board(tmp_path, monkeypatch):
+    """``sim.bench --tuned-from``: a preset's name is its shipped artefact, and a staged
+    board's folder holds its artefact (``PRESET.json``) where an Optuna board holds
+    ``tuning.json``; a bare name that is neither is one line naming what ships."""
+    from pathlib import Path
+
+    board = Path(__file__).resolve().parents[2] / "docs" / "leaderboards" / "eth-ucy"
+    monkeypatch.chdir(tmp_path)  # no folder of that name here
+    by_name, artefact, _ = artefacts.read_tuning(Path("eth-ucy"))
+    assert by_name == artefacts.shipped("eth-ucy") and artefact["design"]["kind"] == "staged"
+    assert artefacts.read_tuning(board)[0] == board / "eth-ucy.json"
+    with pytest.raises(InputError, match="no tuning there .*eth-ucy, noise, radius, traffic"):
+        artefacts.read_tuning(Path("nowhere"))

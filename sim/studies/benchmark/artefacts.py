@@ -54,13 +54,20 @@ def read_json(path: Path, option: str) -> Any:
 
 
 def read_tuning(given: Path, option: str = "--tuned-from") -> tuple[Path, dict, dict]:
-    """A tuning given as a file (an artefact or a board's ``tuning.json``) or a board's folder:
-    the file found, the whole table and its methods; one line where there is none or it is
-    not a table of methods."""
-    candidates = [given, given / "tuning.json", given / "tuning" / "tuning.json"]
-    path = next((c for c in candidates if c.is_file()), None)
+    """A tuning given as a file (an artefact or a board's ``tuning.json``), a board's folder
+    (its ``tuning.json``, or the artefact a staged tuning wrote beside it) or a preset's name
+    (its shipped artefact): the file found, the whole table and its methods; one line where
+    there is none or it is not a table of methods."""
+    named = len(given.parts) == 1 and not given.suffix and not given.exists()
+    candidates = [shipped(str(given))] if named else []
+    candidates += [given, given / "tuning.json", given / "tuning" / "tuning.json"]
+    candidates += _beside_board(given, option)
+    path = next((c for c in candidates if c is not None and c.is_file()), None)
     if path is None:
-        raise InputError(f"{option} {given}: no tuning.json there (a benchmark's folder or file)")
+        raise InputError(
+            f"{option} {given}: no tuning there (a benchmark's folder or file, or a preset that "
+            f"ships one: {_names()})"
+        )
     table = read_json(path, option)
     if not isinstance(table, dict):
         raise InputError(f"{option} {path}: expected a table of methods")
@@ -68,6 +75,17 @@ def read_tuning(given: Path, option: str = "--tuned-from") -> tuple[Path, dict, 
         return path, table, methods_of(table)
     except InputError as error:
         raise InputError(f"{option} {path}: {error}") from None
+
+
+def _beside_board(folder: Path, option: str) -> list[Path]:
+    """The artefact a board tuned by the staged design keeps beside itself (``PRESET.json``,
+    named by its ``leaderboard.json``)."""
+    board = folder / "leaderboard.json"
+    if not board.is_file():
+        return []
+    meta = read_json(board, option)
+    preset = meta.get("preset") if isinstance(meta, dict) else None
+    return [folder / f"{preset}.json"] if isinstance(preset, str) and "/" not in preset else []
 
 
 def methods_of(table: dict[str, Any]) -> dict[str, Any]:

@@ -264,6 +264,14 @@ def leaderboard_markdown(board: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def _column(name: str, board: dict[str, Any]) -> str:
+    """A board's column head: its name, and its metric where it ranks best of K (every table
+    says its K)."""
+    if ranked_metric(board) == "ade_k1":
+        return f"`{name}`"
+    return f"`{name}` (best of {board.get('k', 'K')})"
+
+
 def boards_table(boards: dict[str, dict[str, Any]]) -> str:
     """The tuned Table 2: one column per committed board (``leaderboard.json``, by name), each
     ranked method's final ADE on its board's metric (K = 1 unless the board ranks best of K),
@@ -282,7 +290,7 @@ def boards_table(boards: dict[str, dict[str, Any]]) -> str:
             )
             ranks.setdefault(entry["method"], []).append(entry["rank"])
     order = sorted(cells, key=lambda m: (sum(ranks[m]) / len(ranks[m]), m))
-    header = "| method | " + " | ".join(f"`{n}`" for n in names) + " |"
+    header = "| method | " + " | ".join(_column(n, boards[n]) for n in names) + " |"
     lines = [header, "|---|" + "---|" * len(names)]
     lines += [f"| {m} | " + " | ".join(cells[m].get(n, "-") for n in names) + " |" for m in order]
     pairs = []

@@ -34,6 +34,18 @@ def generation_seconds(configs: list, execution: Execution) -> float:
     return (time.process_time() - started) * len(missing)
 
 
+def tuning_runs(bench: BenchConfig, method: str) -> int:
+    """The tuning runs of ``method``: none where it has nothing to tune or the settings are
+    borrowed; the staged design's grids (``Design.grid_runs``); else Optuna's trials and the
+    race's runs."""
+    space = search_space(method)
+    if not space or bench.borrowed:
+        return 0
+    if bench.design is not None:
+        return bench.design.grid_runs(space)
+    return bench.trials + min(bench.race, bench.trials) * bench.race_seeds
+
+
 def estimate_bench(bench: BenchConfig, execution: Execution) -> dict[str, Any]:
     """What a benchmark will cost, by the run's own estimate (``sim.experiment.estimate``, in
     CPU seconds of one thread): one tuning trial (``trial``) and one evaluation job (``job``) of
@@ -60,8 +72,7 @@ def estimate_bench(bench: BenchConfig, execution: Execution) -> dict[str, Any]:
     ) + generation_seconds(
         [replace(tuning, seed=race_seed(tuning.seed, k)) for k in races], execution
     )
-    runs = bench.trials + min(bench.race, bench.trials) * bench.race_seeds  # the race's too
-    trials = {m: runs if search_space(m) and not bench.borrowed else 0 for m in bench.ranked}
+    trials = {m: tuning_runs(bench, m) for m in bench.ranked}
     tuning_cpu = sum(trials[m] * trial.get(m, 0.0) for m in bench.ranked)
     seeds = {m: seed_count(bench, m) for m in bench.base.methods}
     evaluation_cpu = sum(seeds[m] * job[m] for m in bench.base.methods)
