@@ -282,5 +282,7 @@ def test_a_tuning_is_found_by_a_presets_name_or_beside_a_staged_board(tmp_path, 
     by_name, artefact, _ = artefacts.read_tuning(Path("eth-ucy"))
     assert by_name == artefacts.shipped("eth-ucy") and artefact["design"]["kind"] == "staged"
     assert artefacts.read_tuning(board)[0] == board / "eth-ucy.json"
-    with pytest.raises(InputError, match="no tuning there .*eth-ucy, noise, radius, traffic"):
+    with pytest.raises(
+        InputError, match=r"neither a preset .*eth-ucy, noise, radius, traffic\) nor"
+    ):
         artefacts.read_tuning(Path("nowhere"))

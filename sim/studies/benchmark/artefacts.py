@@ -65,8 +65,8 @@ def read_tuning(given: Path, option: str = "--tuned-from") -> tuple[Path, dict, 
     path = next((c for c in candidates if c is not None and c.is_file()), None)
     if path is None:
         raise InputError(
-            f"{option} {given}: no tuning there (a benchmark's folder or file, or a preset that "
-            f"ships one: {_names()})"
+            f"{option} {given}: neither a preset that ships a tuning ({_names()}) nor a tuning "
+            "file or a benchmark's folder"
         )
     table = read_json(path, option)
     if not isinstance(table, dict):
@@ -173,15 +173,8 @@ def tuned_settings(given: str, methods: tuple[str, ...], tasks: int) -> tuple[di
     a time (or the board)."""
     named = "/" not in given and not given.endswith(".json")  # a preset's name, or a file's
     path = shipped(given) if named else None
-    settings: dict[str, dict[str, Any]] = {}
-    if path is not None:
-        settings = _board_settings(given, methods, tasks)
-    elif named and not Path(given).exists():
-        raise InputError(
-            f"--tuned-from {given}: neither a preset that ships a tuning ({_names()}) nor a "
-            "tuning file"
-        )
-    path, _, table = read_tuning(path or Path(given))
+    settings = _board_settings(given, methods, tasks) if path is not None else {}
+    path, _, table = read_tuning(path or Path(given))  # an unknown name: read_tuning's line
     for method in methods:
         entry = table.get(method)
         if not isinstance(entry, dict) or not isinstance(entry.get("settings"), dict):
