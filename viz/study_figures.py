@@ -205,8 +205,11 @@ def study_figure(summary: dict, path: Path) -> None:
 
 
 def leaderboard_figure(board: dict[str, Any], path: Path) -> None:
-    """The benchmark's ranking: final average ADE of the point prediction and final forgetting,
-    each a point with its 95 % interval, one row per method in rank order (* p < alpha)."""
+    """The benchmark's ranking: final average ADE and final forgetting on the metric the board
+    ranks (the point prediction, or best of K), each a point with its 95 % interval, one row per
+    method in rank order (* p < alpha)."""
+    metric = board.get("metric", "ade_k1")  # a board written before it said: the point
+    what = "K = 1" if metric == "ade_k1" else f"best of {board['k']}"
     entries = board["entries"]
     names = [e["method"] for e in entries]
     rows = np.arange(len(entries))
@@ -214,8 +217,8 @@ def leaderboard_figure(board: dict[str, Any], path: Path) -> None:
     reference = next((e for e in entries if e["method"] == board["reference"]), None)
     fig, axes = plt.subplots(1, 2, figsize=(11, 0.35 * len(entries) + 1.6), sharey=True)
     for ax, key, title in (
-        (axes[0], "final_ade_k1", "final average ADE, K = 1 (m)"),
-        (axes[1], "forgetting_final_ade_k1", "final forgetting, K = 1 (m)"),
+        (axes[0], f"final_{metric}", f"final average ADE, {what} (m)"),
+        (axes[1], f"forgetting_final_{metric}", f"final forgetting, {what} (m)"),
     ):
         for row, e in zip(rows, entries, strict=True):
             mean, bounds = e[key]["mean"], e[key]["interval"] or [e[key]["mean"]] * 2
@@ -228,7 +231,7 @@ def leaderboard_figure(board: dict[str, Any], path: Path) -> None:
                 color=colour,
                 capsize=3,
             )
-            if key == "final_ade_k1" and e[key]["significant"]:
+            if key == f"final_{metric}" and e[key]["significant"]:
                 ax.annotate("*", (bounds[1], row), xytext=(4, -4), textcoords="offset points")
         ax.set_xlabel(title)
         ax.grid(axis="x", color="0.9")

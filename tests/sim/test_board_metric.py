@@ -132,3 +132,21 @@ def test_a_boards_folder_lends_its_tuning_to_a_board_of_its_own_metric(tmp_path)
     assert lent.borrowed[0]["finetune"]["settings"] == {"train": {"lr": 1e-3}}
     with pytest.raises(InputError, match="scored on ade, but this board ranks ade_k1"):
         BenchConfig(base, tuned_from=tmp_path)
+
+
+@pytest.mark.parametrize(("metric", "label"), [("ade_k1", "K = 1"), ("ade", "best of 20")])
+def test_the_figure_draws_the_metric_the_board_ranks(metric, label, monkeypatch, tmp_path):
+    """The eth-ucy board's figure drew the point prediction beside a best-of-K ranking (its rows
+    in one order, its points and stars from the other metric)."""
+    import viz.study_figures as figures
+
+    made = board(metric, monkeypatch)
+    made |= {"alpha": 0.05, "k": 20, "reference": "finetune", "scenario": "x"}
+    made |= {"seeds": 8, "trials": 10}
+    drawn = {}
+    monkeypatch.setattr(figures, "save_figure", lambda fig, path: drawn.setdefault("fig", fig))
+    figures.leaderboard_figure(made, tmp_path / "board.png")
+    ade = drawn["fig"].axes[0]
+    assert ade.get_xlabel() == f"final average ADE, {label} (m)"
+    points = [line.get_xdata()[0] for line in ade.lines if line.get_marker() == "o"]
+    assert points == pytest.approx([e[f"final_{metric}"]["mean"] for e in made["entries"]])
