@@ -20,9 +20,9 @@ from c2inet.files import write_atomic
 from sim.experiment import Execution, ExperimentConfig, run_experiment
 from sim.experiment.folders import TEMPORARY, claim, output_folder
 
-QUICK = ["--scenario", "crowd_noise_0.1..0.3", "--quick", "--methods", "c2inet-online,finetune"]
+QUICK = ["--scenario", "crowd_noise_0.1..0.2", "--quick", "--methods", "c2inet-online,finetune"]
 QUICK_CONFIG = {  # QUICK with --epochs EPOCHS, as the engine takes it
-    "scenario": "crowd_noise_0.1..0.3",
+    "scenario": "crowd_noise_0.1..0.2",
     "quick": True,
     "methods": ("c2inet-online", "finetune"),
     "epochs": 2,
@@ -92,7 +92,7 @@ def test_a_run_killed_or_interrupted_at_every_moment_resumes_to_the_same_metrics
     job = out / "jobs" / "c2inet-online" / "seed_0"
     moments = {
         "generating": (out / "config.json", signal.SIGKILL),
-        "ctrl-c mid-job": (job / "checkpoints" / "task_01.pt", signal.SIGINT),
+        "ctrl-c mid-job": (job / "checkpoints" / "task_00.pt", signal.SIGINT),
         "between jobs": (job / "result.json", signal.SIGKILL),
     }
     process = start(out, cache, "--epochs", EPOCHS)
@@ -138,7 +138,7 @@ def test_each_run_gets_a_fresh_folder_and_latest_points_to_it(tmp_path, monkeypa
     monkeypatch.chdir(tmp_path)  # runs/ lies in the current folder
     argv = [*QUICK, "--cache", str(tmp_path / "cache"), "--methods", "cv", "--no-record"]
     assert main(argv) == 0 and main(argv) == 0  # folders, not training
-    root = tmp_path / "runs" / "crowd_noise_0.1..0.3"
+    root = tmp_path / "runs" / "crowd_noise_0.1..0.2"
     runs = sorted(p for p in root.iterdir() if p.name != "latest")
     assert len(runs) == 2 and all((p / "metrics.json").exists() for p in runs)
     assert (root / "latest").resolve() == runs[-1].resolve()
