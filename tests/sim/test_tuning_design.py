@@ -256,19 +256,32 @@ def test_the_shipped_tunings_are_the_committed_boards_own():
         assert shipped["design"]["kind"] == "optuna" and shipped["provenance"]["sha256"]
 
 
-def test_eth_ucys_shipped_tuning_is_its_boards_staged_tuning_of_best_of_k():
-    """The eth-ucy board tuned by the staged design, scoring best of 20 as the board ranks, and
-    wrote the artefact that ships, byte for byte; no learning rate it chose sits at a bound."""
+@pytest.mark.parametrize(
+    ("preset", "folder", "metric"),
+    [("radius", "radius-staged-all", "ade_k1"), ("eth-ucy", "eth-ucy", "ade")],
+)
+def test_a_staged_shipped_tuning_is_its_boards_own_and_its_bounds_are_marked(
+    preset, folder, metric
+):
+    """The radius and eth-ucy boards tuned every method by the staged design, scoring what the
+    board ranks, and wrote the artefact that ships, byte for byte; every knob chosen at a bound
+    of its range is marked on the board (eth-ucy: no learning rate among them)."""
     from pathlib import Path
 
-    board = Path(__file__).resolve().parents[2] / "docs" / "leaderboards" / "eth-ucy"
-    shipped = artefacts.shipped("eth-ucy")
-    assert shipped.read_bytes() == (board / "eth-ucy.json").read_bytes()
+    board = Path(__file__).resolve().parents[2] / "docs" / "leaderboards" / folder
+    shipped = artefacts.shipped(preset)
+    assert shipped.read_bytes() == (board / f"{preset}.json").read_bytes()
     artefact = json.loads(shipped.read_text())
-    assert artefact["design"]["kind"] == "staged" and artefact["design"]["metric"] == "ade"
-    assert json.loads((board / "leaderboard.json").read_text())["metric"] == "ade"
+    design = artefact["design"]
+    assert design["kind"] == "staged" and design.get("metric", "ade_k1") == metric
+    assert json.loads((board / "leaderboard.json").read_text())["metric"] == metric
     tuned = {m: e for m, e in artefact["methods"].items() if "train" in e["settings"]}
-    assert len(tuned) == 16 and not any("train.lr" in e["at_bound"] for e in tuned.values())
+    assert len(tuned) == 16
+    table = (board / "leaderboard.md").read_text().split("References")[0]
+    for method, entry in tuned.items():
+        assert (f"| {method} † |" in table) == bool(entry["at_bound"]), method
+    if preset == "eth-ucy":
+        assert not any("train.lr" in e["at_bound"] for e in tuned.values())
 
 
 def test_a_tuning_is_found_by_a_presets_name_or_beside_a_staged_board(tmp_path, monkeypatch):
