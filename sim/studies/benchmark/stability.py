@@ -26,13 +26,17 @@ pq = lazy_module("pyarrow.parquet")
 def finals(board: Path, metric: str = "ade_k1") -> dict[str, dict[int, float]]:
     """Per method, each evaluation seed's final average ADE on ``metric`` (the board's: the
     point prediction's or best of K; the mean over every task after the curriculum's last)."""
-    rows = [r for r in pq.read_table(board / "results.parquet").to_pylist()
-            if r["metric"] == metric]  # fmt: skip
-    last = list(dict.fromkeys(r["on_task"] for r in rows))[-1]  # the curriculum's order
+    columns = ["method", "seed", "on_task", "after_task", "value"]
+    table = pq.read_table(
+        board / "results.parquet", columns=columns, filters=[("metric", "==", metric)]
+    ).to_pydict()  # only the cells of the metric: a board holds every metric's, 0.5 M values
+    last = list(dict.fromkeys(table["on_task"]))[-1]  # the curriculum's order
     cells: dict[str, dict[int, list[float]]] = {}
-    for r in rows:
-        if r["after_task"] == last:
-            cells.setdefault(r["method"], {}).setdefault(r["seed"], []).append(r["value"])
+    for method, seed, after, value in zip(
+        table["method"], table["seed"], table["after_task"], table["value"], strict=True
+    ):
+        if after == last:
+            cells.setdefault(method, {}).setdefault(seed, []).append(value)
     return {
         m: {s: float(np.mean(v)) for s, v in sorted(seeds.items())} for m, seeds in cells.items()
     }
