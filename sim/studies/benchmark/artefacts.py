@@ -171,10 +171,9 @@ def tuned_settings(given: str, methods: tuple[str, ...], tasks: int) -> tuple[di
     job. The trainer's and the model's options are shared by every method of one run, so
     methods tuned to different ``train.*`` or ``model.*`` values are one line: run them one at
     a time (or the board)."""
-    named = "/" not in given and not given.endswith(".json")  # a preset's name, or a file's
-    path = shipped(given) if named else None
-    settings = _board_settings(given, methods, tasks) if path is not None else {}
-    path, _, table = read_tuning(path or Path(given))  # an unknown name: read_tuning's line
+    path, _, table = read_tuning(Path(given))  # the one reading of a name, file or folder
+    by_name = path == shipped(given)  # a preset's own artefact: its board's settings too
+    settings = _board_settings(given, methods, tasks) if by_name else {}
     for method in methods:
         entry = table.get(method)
         if not isinstance(entry, dict) or not isinstance(entry.get("settings"), dict):
