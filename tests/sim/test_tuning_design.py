@@ -299,3 +299,20 @@ def test_a_tuning_is_found_by_a_presets_name_or_beside_a_staged_board(tmp_path, 
         InputError, match=r"neither a preset .*eth-ucy, noise, radius, traffic\) nor"
     ):
         artefacts.read_tuning(Path("nowhere"))
+
+
+def test_sim_run_and_sim_bench_read_a_name_alike(tmp_path, monkeypatch):
+    """A file named like a preset where the command runs is that file for both commands (sim.run
+    had its own rule and took the shipped artefact); only a preset's own artefact brings its
+    board's batch and data sizes."""
+    from pathlib import Path
+
+    monkeypatch.chdir(tmp_path)
+    Path("radius").write_text(json.dumps({"finetune": {"settings": {"train": {"lr": 0.0123}}}}))
+    settings, path = artefacts.tuned_settings("radius", ("finetune",), 2)
+    assert Path(path) == Path("radius") == artefacts.read_tuning(Path("radius"))[0]
+    assert settings == {"train": {"lr": 0.0123}}  # no board's batch or data sizes
+    Path("radius").unlink()
+    settings, path = artefacts.tuned_settings("radius", ("finetune",), 2)
+    assert Path(path) == artefacts.shipped("radius") and settings["train"]["batch_scenes"] == 16
+    assert settings["data"] == {"splits.train": 200}
