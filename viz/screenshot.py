@@ -9,6 +9,7 @@ out after about 3 s of real time whatever its size. Needs ``pip install '.[scree
 
 from __future__ import annotations
 
+import argparse
 import io
 import os
 import shutil
@@ -37,6 +38,9 @@ CHROMIUM_FLAGS = [
     "--disable-background-networking",
     "--disable-component-update",
     "--disable-sync",
+    # the viewer asks the internet for fonts, its latest release and telemetry: no name but
+    # the loopback resolves, so nothing leaves the machine and no lookup waits on a resolver
+    "--host-resolver-rules=MAP * ~NOTFOUND , EXCLUDE 127.0.0.1",
 ]
 
 
@@ -103,16 +107,31 @@ def screenshot(
     raise RuntimeError(f"the viewer did not draw within {timeout_s:g} s; {out} not written")
 
 
+def picture_size(text: str) -> str:
+    """An argparse ``type``: ``WIDTH,HEIGHT`` in pixels, each 200 to 4000."""
+    parts = text.split(",")
+    if len(parts) != 2 or not all(p.strip().isdigit() and 200 <= int(p) <= 4000 for p in parts):
+        raise argparse.ArgumentTypeError(f"{text!r} is not WIDTH,HEIGHT (each 200 to 4000)")
+    return ",".join(p.strip() for p in parts)
+
+
 @guarded
 def main(argv: list[str] | None = None) -> int:
     p = plain_parser("viz.screenshot", __doc__.splitlines()[0])
     p.add_argument("recording", type=Path)
     p.add_argument("out", type=Path)
+    p.add_argument(
+        "--size",
+        type=picture_size,
+        default="1600,900",
+        help="the picture in pixels, WIDTH,HEIGHT (default 1600,900; software WebGL draws "
+        "every frame on the CPU, so a smaller one is faster)",
+    )
     args = p.parse_args(argv)
     if not args.recording.is_file():
         raise InputError(f"{args.recording}: no such recording")
     try:
-        print(screenshot(args.recording, args.out))
+        print(screenshot(args.recording, args.out, args.size))
     except (RuntimeError, subprocess.SubprocessError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 1

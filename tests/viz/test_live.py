@@ -70,10 +70,11 @@ def test_a_screenshot_that_never_draws_writes_nothing(tmp_path, monkeypatch):
     import viz.screenshot as shot
 
     monkeypatch.setattr(shot, "rendered", lambda png: False)
+    monkeypatch.setattr(shot, "POLL_S", 1.0)
     recording = tmp_path / "r.rrd"
     recording.write_bytes(b"")
-    with pytest.raises(RuntimeError, match="did not draw within 6 s; .* not written"):
-        shot.screenshot(recording, tmp_path / "out.png", timeout_s=6)
+    with pytest.raises(RuntimeError, match="did not draw within 4 s; .* not written"):
+        shot.screenshot(recording, tmp_path / "out.png", "400,225", timeout_s=4)
     assert not (tmp_path / "out.png").exists()
 
 
@@ -105,3 +106,15 @@ def test_the_screenshot_waits_for_the_recording_to_stream_in(monkeypatch):
     never = iter([b"loading"] * 3)
     monkeypatch.setattr(Page, "screenshot", lambda self: next(never))
     assert shot.drawn(Page(), deadline=shot.time.monotonic() + 0.0) is None
+
+
+@pytest.mark.parametrize("size", ["800", "800,450,1", "0,450", "800,99999", "wide,tall"])
+def test_a_bad_picture_size_is_one_line_and_exit_2(size, tmp_path, capsys):
+    from viz.screenshot import main
+
+    recording = tmp_path / "r.rrd"
+    recording.write_bytes(b"")
+    assert main([str(recording), str(tmp_path / "out.png"), "--size", size]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "--size" in err and "WIDTH,HEIGHT" in err
+    assert not (tmp_path / "out.png").exists()
