@@ -18,7 +18,7 @@ from sim.bench import main
 from sim.experiment import ExperimentConfig
 from sim.experiment.config import Execution
 from sim.experiment.design import Design, choose, near_bound
-from sim.experiment.staged import draw_seed, run_staged
+from sim.experiment.staged import MethodSearch, draw_seed, record, run_staged
 from sim.scenario import parse_scenario
 from sim.studies.benchmark import PRESETS, artefacts
 from sim.studies.benchmark.board_markdown import leaderboard_markdown
@@ -56,6 +56,27 @@ def test_a_stage_chooses_the_planted_minimum_between_its_grid_points():
     diverged = {**means, 10**-2.5: math.inf}
     assert choose(LR, diverged)[0] == 1e-3  # a diverged neighbour: no fit through it
     assert choose(Choice((True, False)), {True: 0.3, False: 0.2})[0] is False
+
+
+def test_the_defaults_are_kept_where_they_score_better_than_the_stages_choice():
+    """A walk one knob at a time can end worse than where it began (C2INet-online on density);
+    the defaults, run on the same draws, are then what ships, with no bound mark of the walk's."""
+    space = {"train.lr": LR, "strength": Tunable(0.01, 1e4, log=True)}
+    search = MethodSearch(
+        "ewc", space, {"train.lr": 1e-2, "strength": 1e4}, {"train.lr": 3e-3, "strength": 1.0},
+        ["train.lr", "strength"],
+        stages=[{"knob": "strength", "chosen": 1e4, "at_bound": "high"}],
+    )  # fmt: skip
+    worse = record(search, objective=0.450, default=0.439)
+    assert worse["kept"] == "defaults" and worse["at_bound"] == {}
+    assert worse["settings"] == {"train": {"lr": 3e-3}, "ewc": {"strength": 1.0}}
+    assert (worse["objective"], worse["default_objective"]) == (0.450, 0.439)
+    better = record(search, objective=0.430, default=0.439)
+    assert better["kept"] == "stages" and better["at_bound"] == {"strength": "high"}
+    assert better["settings"] == {"train": {"lr": 1e-2}, "ewc": {"strength": 1e4}}
+    assert record(search, objective=math.nan, default=0.5)["kept"] == "defaults"
+    assert record(search, objective=0.5, default=math.nan)["kept"] == "stages"
+    assert record(search, objective=0.5, default=0.5)["kept"] == "stages"  # a tie: the walk's
 
 
 def test_a_choice_at_a_bound_is_marked_on_the_board():
@@ -117,11 +138,14 @@ def test_the_staged_tuning_scores_every_setting_on_the_same_draws(staged):
             assert {r["seed"] for r in runs if r["draw"] == draw} == {draw_seed(base.seed, draw)}
         lr = chosen[method]["stages"][0]
         assert lr["knob"] == "train.lr" and len(lr["points"]) >= 3
-        assert chosen[method]["settings"]["train"]["lr"] == lr["chosen"]
+        kept = chosen[method]["kept"]
+        shipped = chosen[method]["settings"]["train"]["lr"]
+        assert shipped == (lr["chosen"] if kept == "stages" else 3e-3)
         assert math.isfinite(chosen[method]["objective"])
     ewc = chosen["ewc"]
     assert [s["knob"] for s in ewc["stages"]] == ["train.lr", "strength"]
-    assert ewc["settings"]["ewc"]["strength"] == ewc["stages"][1]["chosen"]
+    if ewc["kept"] == "stages":
+        assert ewc["settings"]["ewc"]["strength"] == ewc["stages"][1]["chosen"]
     assert draw_seed(0, 0) != draw_seed(1, 0)  # another tuning seed, other draws
 
 
