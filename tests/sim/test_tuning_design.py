@@ -79,7 +79,7 @@ def test_the_defaults_are_kept_where_they_score_better_than_the_stages_choice():
     assert record(search, objective=0.5, default=0.5)["kept"] == "stages"  # a tie: the walk's
 
 
-def test_a_choice_at_a_bound_is_marked_on_the_board():
+def test_a_choice_at_a_bound_and_kept_defaults_are_marked_on_the_board():
     assert near_bound(LR, LR.low) == "low" and near_bound(LR, LR.high) == "high"
     assert near_bound(LR, 1e-3) is None and near_bound(Choice((1, 2)), 1) is None
     marks = bounds_of("ewc", {"train": {"lr": 1e-3}, "ewc": {"strength": 1e4}})
@@ -100,6 +100,8 @@ def test_a_choice_at_a_bound_is_marked_on_the_board():
              "at_bound": marks}  # fmt: skip
     text = leaderboard_markdown({**board, "entries": [entry]})
     assert "| ewc † |" in text and "strength at its high bound" in text
+    kept = leaderboard_markdown({**board, "entries": [{**entry, "kept": "defaults"}]})
+    assert "(its defaults, kept" in kept and "(its defaults, kept" not in text
 
 
 def test_every_preset_tunes_on_its_evaluated_configuration_and_its_own_design():

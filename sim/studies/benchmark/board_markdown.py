@@ -204,6 +204,8 @@ def _settings_and_cost(board: dict[str, Any]) -> list[str]:
     for e in board["entries"]:
         trials = f"{e['trials']} ({e['pruned']} pruned)" if e.get("pruned") else str(e["trials"])
         text = _settings_text(e["settings"]) or "(nothing to tune)"
+        if e.get("kept") == "defaults":  # the staged walk's choice scored worse in tuning
+            text += " (its defaults, kept: they scored better than the tuning's choice)"
         settings.append([e["method"], text, trials, str(e["cpu_seconds"])])
     run = board["run"]
     cost = f"{run['wall_seconds'] / 60:.1f} min wall, {run['cpu_seconds']:.0f} CPU s of jobs"

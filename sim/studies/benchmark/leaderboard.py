@@ -170,6 +170,7 @@ def leaderboard(
                 "trials": len(chosen[method]["trials"]),
                 "pruned": sum(t.get("pruned", False) for t in chosen[method]["trials"]),
                 "at_bound": bounds_of(method, chosen[method]["settings"]),
+                **({"kept": "defaults"} if chosen[method].get("kept") == "defaults" else {}),
                 **({"race": chosen[method]["race"]} if "race" in chosen[method] else {}),
             }
         )
