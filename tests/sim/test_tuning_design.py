@@ -265,13 +265,13 @@ def test_a_setting_two_stages_ask_runs_once(staged):
 
 
 def test_the_shipped_tunings_are_the_committed_boards_own():
-    """The three presets whose shipped tuning is a committed board's Optuna tuning: made from
+    """The two presets whose shipped tuning is a committed board's Optuna tuning: made from
     that board by ``from_board``, their settings equal to the board's tuning.json."""
     import tempfile
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[2]
-    for preset in ("density", "noise", "traffic"):
+    for preset in ("noise", "traffic"):
         shipped = json.loads(artefacts.shipped(preset).read_text())
         board = root / "docs" / "leaderboards" / preset
         with tempfile.TemporaryDirectory() as tmp:
@@ -284,14 +284,19 @@ def test_the_shipped_tunings_are_the_committed_boards_own():
 
 @pytest.mark.parametrize(
     ("preset", "folder", "metric"),
-    [("radius", "radius-staged-all", "ade_k1"), ("eth-ucy", "eth-ucy", "ade")],
+    [
+        ("radius", "radius-staged-all", "ade_k1"),
+        ("density", "density-staged-all", "ade_k1"),
+        ("eth-ucy", "eth-ucy", "ade"),
+    ],
 )
 def test_a_staged_shipped_tuning_is_its_boards_own_and_its_bounds_are_marked(
     preset, folder, metric
 ):
-    """The radius and eth-ucy boards tuned every method by the staged design, scoring what the
-    board ranks, and wrote the artefact that ships, byte for byte; every knob chosen at a bound
-    of its range is marked on the board (eth-ucy: no learning rate among them)."""
+    """The radius, density and eth-ucy boards tuned every method by the staged design, scoring
+    what the board ranks, and wrote the artefact that ships, byte for byte; every knob chosen at a
+    bound of its range is marked on the board (eth-ucy: no learning rate among them), and so is
+    every method whose defaults were kept."""
     from pathlib import Path
 
     board = Path(__file__).resolve().parents[2] / "docs" / "leaderboards" / folder
@@ -304,8 +309,11 @@ def test_a_staged_shipped_tuning_is_its_boards_own_and_its_bounds_are_marked(
     tuned = {m: e for m, e in artefact["methods"].items() if "train" in e["settings"]}
     assert len(tuned) == 16
     table = (board / "leaderboard.md").read_text().split("References")[0]
+    settings = (board / "leaderboard.md").read_text().split("Chosen settings and cost")[1]
     for method, entry in tuned.items():
         assert (f"| {method} † |" in table) == bool(entry["at_bound"]), method
+        row = next(line for line in settings.splitlines() if line.startswith(f"| {method} |"))
+        assert ("(its defaults, kept" in row) == (entry["kept"] == "defaults"), method
     if preset == "eth-ucy":
         assert not any("train.lr" in e["at_bound"] for e in tuned.values())
 
