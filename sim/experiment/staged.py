@@ -205,16 +205,16 @@ def record(search: MethodSearch, objective: float, default: float) -> dict[str, 
     same draws they are kept (``kept``), since a walk one knob at a time can end worse than it
     began (C2INet-online on density: 0.450 chosen against 0.439 for its defaults)."""
     kept = "defaults" if _better(default, objective) else "stages"
-    bounds = {s["knob"]: s["at_bound"] for s in search.stages if "at_bound" in s}
+    params = search.defaults if kept == "defaults" else search.fixed
     return {
-        "settings": as_settings(
-            search.method, search.defaults if kept == "defaults" else search.fixed
-        ),
+        "settings": as_settings(search.method, params),
         "objective": _finite(objective),
         "default_objective": _finite(default),
         "kept": kept,
         "stages": search.stages,
-        "at_bound": bounds if kept == "stages" else {},
+        "at_bound": {
+            k: side for k, v in params.items() if (side := near_bound(search.space[k], v))
+        },
         "trials": list(search.runs.values()),
     }
 

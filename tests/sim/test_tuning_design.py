@@ -13,7 +13,7 @@ import pytest
 
 from c2inet.errors import InputError
 from c2inet.options import Choice, Tunable
-from c2inet.trainer import TRAIN_SPACE
+from c2inet.trainer import TRAIN_SPACE, TrainConfig
 from sim.bench import main
 from sim.experiment import ExperimentConfig
 from sim.experiment.config import Execution
@@ -142,7 +142,7 @@ def test_the_staged_tuning_scores_every_setting_on_the_same_draws(staged):
         assert lr["knob"] == "train.lr" and len(lr["points"]) >= 3
         kept = chosen[method]["kept"]
         shipped = chosen[method]["settings"]["train"]["lr"]
-        assert shipped == (lr["chosen"] if kept == "stages" else 3e-3)
+        assert shipped == (lr["chosen"] if kept == "stages" else TrainConfig().lr)
         assert math.isfinite(chosen[method]["objective"])
     ewc = chosen["ewc"]
     assert [s["knob"] for s in ewc["stages"]] == ["train.lr", "strength"]
