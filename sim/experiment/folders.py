@@ -44,6 +44,7 @@ RUN_FILES = {
     TRUTH_PART,
     "summary.json",
     "spent.json",  # a benchmark's time
+    "calls.json",  # a benchmark tuning's calls: commit, wall, runs
     "tuning.db",  # a tuning's Optuna studies (in its own marked folder)
     "tuning.json",
     "mlflow.db",  # --logger mlflow's store, the run's or its sweep's

@@ -6,6 +6,7 @@ uninterrupted one, and a board that evaluates a shipped artefact without running
 import json
 import math
 import shutil
+from dataclasses import replace
 from importlib import import_module
 
 import numpy as np
@@ -22,7 +23,9 @@ from sim.experiment.staged import MethodSearch, draw_seed, record, run_staged
 from sim.scenario import parse_scenario
 from sim.studies.benchmark import PRESETS, artefacts
 from sim.studies.benchmark.board_markdown import leaderboard_markdown
+from sim.studies.benchmark.config import BenchConfig
 from sim.studies.benchmark.leaderboard import bounds_of
+from sim.studies.benchmark.protocol import run_bench
 
 LR = TRAIN_SPACE["train.lr"]
 
@@ -168,6 +171,33 @@ def test_a_resumed_staged_tuning_gives_the_same_artefact(staged, tmp_path):
 
     again = run_staged(base, design, copy, execution)
     assert without_cost(again) == without_cost(json.loads(json.dumps(chosen)))
+
+
+def test_a_resumed_tuning_artefact_names_every_call_that_ran_it(staged, tmp_path, monkeypatch):
+    root, base, _, execution, _ = staged
+    design = Design(lr_low=1e-3, lr_high=1e-2, lr_points=3, draws=1, extend=0)
+    bench = BenchConfig(replace(base, methods=("finetune", "cv")), design=design)
+    out = tmp_path / "board"
+    protocol = import_module(run_bench.__module__)
+    monkeypatch.setattr(protocol, "git_commit", lambda: "first")
+    first = run_bench(bench, out, execution, tune_only=True)
+    [call] = first["provenance"]["calls"]
+    assert call["commit"] == "first" and call["runs"] == len(first["methods"]["finetune"]["trials"])
+    # killed before it chose (a copy: this process holds the first folder's runs): its last
+    # run and the artefact gone, resumed by another commit
+    killed = tmp_path / "killed"
+    shutil.copytree(out, killed)
+    shutil.rmtree(sorted((killed / "tuning" / "trials" / "finetune").iterdir())[-1])
+    (killed / f"{bench.name}.json").unlink()
+    (killed / "tuning" / "tuning.json").unlink()
+    monkeypatch.setattr(protocol, "git_commit", lambda: "second")
+    again = run_bench(bench, killed, execution, resume=True, tune_only=True)
+    made = again["provenance"]
+    assert made["commits"] == ["first", "second"] and [c["runs"] for c in made["calls"]] == [
+        call["runs"], 1
+    ]
+    assert made["wall_seconds"] == pytest.approx(sum(c["wall_seconds"] for c in made["calls"]))
+    assert again["methods"] == first["methods"]
 
 
 def test_a_board_evaluates_its_presets_shipped_tuning_and_runs_no_trial(

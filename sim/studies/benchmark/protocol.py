@@ -183,21 +183,40 @@ def tune(bench: BenchConfig, out: Path, execution: Execution) -> dict[str, dict[
     return run_tuning(bench.tuning(), out / "tuning", execution)
 
 
+def tuning_runs(bench: BenchConfig, out: Path) -> int:
+    """How many tuning runs of the ranked methods have finished under ``out``."""
+    return sum(len(trial_results(out / "tuning", m)) for m in bench.ranked)
+
+
+def record_tuning_call(out: Path, commit, wall: float, runs: int) -> list[dict[str, Any]]:
+    """Add this call's commit, wall seconds to its choice and new tuning runs to
+    ``tuning/calls.json`` and return every call's: a resumed tuning's artefact names each commit
+    that ran part of it (and the one that chose), not only the last call's."""
+    path = out / "tuning" / "calls.json"
+    calls = json.loads(path.read_text()) if path.is_file() else []
+    calls.append({"commit": commit, "wall_seconds": round(wall, 1), "runs": runs})
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_text_atomic(path, json.dumps(calls, indent=1) + "\n")
+    return calls
+
+
 def write_tuning_artefact(
-    bench: BenchConfig, out: Path, chosen: dict, commit, argv, started: float
+    bench: BenchConfig, out: Path, chosen: dict, calls: list[dict[str, Any]], argv
 ) -> dict[str, Any]:
     """The tuning as a shipped artefact (``artefacts.py``): every method's choice with the
-    curricula, design, seed, runs, commit, machine and cost that produced it."""
+    curricula, design, seed, runs, commits, machine and cost that produced it (``calls``: the
+    calls of ``record_tuning_call``, this one last)."""
     base = bench.tuning_base()
     cpu = sum(
         r.get("cpu_seconds") or 0.0 for m in bench.ranked for r in trial_results(out / "tuning", m)
     )
     provenance = {
         "made_by": " ".join(argv or []),
-        "commits": [commit],
+        "commits": list(dict.fromkeys(c["commit"] for c in calls)),
+        "calls": calls,
         "machine": machine(),
         "cpu_seconds": round(cpu, 1),
-        "wall_seconds": round(time.perf_counter() - started, 1),
+        "wall_seconds": round(sum(c["wall_seconds"] for c in calls), 1),
         "epochs": bench.base.epochs,
         "batch_scenes": bench.base.train_config().batch_scenes,
         "data": bench.base.settings.get("data", {}),
@@ -274,9 +293,13 @@ def run_bench(
         estimate = {k: round(cost[k], 1) for k in ("cpu_seconds", "wall_seconds")}
         print(estimate_line(cost, execution.jobs), file=sys.stderr)
     with kept_workers():  # the tuning rounds and the evaluation start the workers once
+        runs_before = tuning_runs(bench, out)
         chosen = tune(bench, out, execution)
         if not bench.borrowed:  # what it tuned, as the file a preset ships
-            artefact = write_tuning_artefact(bench, out, chosen, commit, argv, started)
+            calls = record_tuning_call(
+                out, commit, time.perf_counter() - started, tuning_runs(bench, out) - runs_before
+            )
+            artefact = write_tuning_artefact(bench, out, chosen, calls, argv)
             if tune_only:
                 return artefact
         (out / "evaluation").mkdir(exist_ok=True)
