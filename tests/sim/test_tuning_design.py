@@ -194,7 +194,8 @@ def test_a_resumed_tuning_artefact_names_every_call_that_ran_it(staged, tmp_path
     again = run_bench(bench, killed, execution, resume=True, tune_only=True)
     made = again["provenance"]
     assert made["commits"] == ["first", "second"] and [c["runs"] for c in made["calls"]] == [
-        call["runs"], 1
+        call["runs"],
+        1,
     ]
     assert made["wall_seconds"] == pytest.approx(sum(c["wall_seconds"] for c in made["calls"]))
     assert again["methods"] == first["methods"]
