@@ -124,3 +124,18 @@ def test_the_detectable_effect_shrinks_with_seeds_as_one_over_their_root():
     many = detectable([list(rng.normal(0, 0.01, 32)) for _ in range(5)])
     assert 0.006 < few < 0.016 and many < few / 1.8  # about 2.9 sd / sqrt(n)
     assert detectable([[0.1]]) is None
+
+
+def test_seed_noise_alone_caps_how_often_two_boards_agree_and_more_seeds_raise_the_cap():
+    from c2inet.significance import replication_agreement
+
+    rng = np.random.default_rng(7)
+    noise = rng.normal(0.0, 0.01, (6, 10))
+    clear = noise - noise.mean(axis=1, keepdims=True) + [[0.05], [-0.05], [0.06], [0], [0], [0]]
+    assert replication_agreement(clear) > 0.95  # far from the threshold or at 0: the same verdict
+    at_threshold = noise - noise.mean(axis=1, keepdims=True)
+    at_threshold += np.sign(rng.normal(size=(6, 1))) * 0.0085  # about a Holm p of 0.05
+    cap = replication_agreement(at_threshold)
+    assert 0.4 < cap < 0.85  # a coin toss for a method whose p sits at the threshold
+    assert replication_agreement(at_threshold, seeds=40) > cap + 0.1
+    assert replication_agreement(at_threshold) == cap  # a fixed generator: the same figure

@@ -17,7 +17,14 @@ import numpy as np
 
 from c2inet.lazy import lazy_module
 from c2inet.report import REFERENCE
-from c2inet.significance import ALPHA, LEVEL, holm, over_tunings, paired
+from c2inet.significance import (
+    ALPHA,
+    LEVEL,
+    holm,
+    over_tunings,
+    paired,
+    replication_agreement,
+)
 
 # loaded on first use: a command that stops at bad input or answers --help does not pay for it
 pq = lazy_module("pyarrow.parquet")
@@ -86,6 +93,7 @@ def stability(boards: list[Path], reference: str = REFERENCE) -> dict[str, Any]:
             else "not shown",
         }
     agree = [m for m in methods if len(set(rows[m]["verdicts"])) == 1]
+    ceilings = [seed_ceiling(v, methods, reference) for v in values]
     reversed_ = [m for m in methods if {"ahead", "behind"} <= set(rows[m]["verdicts"])]
     return {
         "boards": [str(b) for b in boards],
@@ -96,6 +104,23 @@ def stability(boards: list[Path], reference: str = REFERENCE) -> dict[str, Any]:
         "ranked": len(methods),
         "reversed": reversed_,
         "level": LEVEL,
+        "seed_ceiling": ceilings,
+    }
+
+
+def seed_ceiling(
+    values: dict[str, dict[int, float]], methods: list[str], reference: str
+) -> dict[str, Any]:
+    """How often two boards of this one tuning would agree on a Holm verdict if they differed
+    only in their seeds, this board's differences taken as the truth
+    (:func:`c2inet.significance.replication_agreement`): at its seed count and at twice it."""
+    seeds = sorted(set.intersection(*(set(values[m]) for m in [*methods, reference])))
+    d = [[values[m][s] - values[reference][s] for s in seeds] for m in methods]
+    n = len(seeds)
+    return {
+        "seeds": n,
+        "agree": replication_agreement(d),
+        "agree_twice": replication_agreement(d, 2 * n),
     }
 
 
@@ -144,5 +169,14 @@ def stability_markdown(result: dict[str, Any]) -> str:
         f"({100 * share:.0f} %); starred verdicts reversed: "
         + (", ".join(result["reversed"]) or "none")
         + ".",
+        "",
+        "Seed noise alone: two boards of one of these tunings that differed only in their seeds "
+        "(its own differences taken as the truth, seeds resampled, 2,000 pairs) would agree on "
+        + ", ".join(
+            f"{100 * c['agree']:.0f} % (`{name}`, {c['seeds']} seeds; {100 * c['agree_twice']:.0f} "
+            f"% at {2 * c['seeds']})"
+            for name, c in zip(names, result["seed_ceiling"], strict=True)
+        )
+        + " of the verdicts: what a second tuning that changed nothing would reach, expected.",
     ]
     return "\n".join(lines) + "\n"
