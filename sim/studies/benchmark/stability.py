@@ -4,6 +4,8 @@ side, how many agree, which starred verdicts reverse, and each method's differen
 fine-tuning over tunings and seeds together, the tuning a random effect
 (:func:`c2inet.significance.over_tunings`), Holm-adjusted over the methods. A verdict that holds
 is one whose over-tunings interval is clear of 0; a board that rests on one tuning cannot say.
+Beside it, each board's seed ceiling: how often two boards of that one tuning would agree if
+they differed only in their seeds, which bounds what any second tuning can be expected to reach.
 
 ``python scripts/tuning_stability.py BOARD BOARD ...`` prints it."""
 
