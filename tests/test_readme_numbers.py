@@ -71,6 +71,25 @@ def test_density_leads_under_both_tunings():
     assert quotes == expected
 
 
+def test_noise_verdicts_are_those_both_of_its_tunings_star():
+    """Coresets ahead of fine-tuning under both tunings of noise at the quoted gaps, constant
+    velocity behind under both, and the two that are withdrawn starred by the Optuna one alone."""
+    from sim.studies.benchmark.stability import stability
+
+    boards = ("noise-shipped", "noise-staged-all")
+    quotes = quoted(
+        r"ahead of tuned fine-tuning under both tunings\*\* \(-(0\.\d+) and -(0\.\d+) m\)"
+    )
+    assert quotes == [-round(difference(b, "coresets"), 3) for b in boards]
+    verdicts = {
+        m: e["verdicts"] for m, e in stability([BOARDS / b for b in boards])["methods"].items()
+    }
+    both = {m: v[0] for m, v in verdicts.items() if v[0] == v[1] and v[0] != "level"}
+    assert both == {"coresets": "ahead", "cv": "behind"}
+    assert {m for m, v in verdicts.items() if v == ["behind", "level"]} == {"pecnet", "adaptive"}
+    assert verdicts["c2inet-online"] == ["level", "level"]
+
+
 def test_the_sim_to_real_ranking_is_the_committed_boards_tau():
     (tau,) = quoted(r"Kendall's tau \+(0\.\d\d) \[")
     spec = importlib.util.spec_from_file_location("transfer", ROOT / "scripts/ranking_transfer.py")
