@@ -16,7 +16,13 @@ sys.path.insert(0, str(ROOT))
 from sim.studies.benchmark.board_markdown import boards_table  # noqa: E402
 
 # the protocol's boards
-BOARDS = ("radius-staged-all", "density-staged-all", "noise-staged-all", "traffic-shipped", "eth-ucy")
+BOARDS = (
+    "radius-staged-all",
+    "density-staged-all",
+    "noise-staged-all",
+    "traffic-shipped",
+    "eth-ucy",
+)
 START, END = "<!-- tuned-table-2: made by scripts/tuned_table.py -->", "<!-- /tuned-table-2 -->"
 
 
