@@ -188,12 +188,15 @@ def tuning_runs(bench: BenchConfig, out: Path) -> int:
     return sum(len(trial_results(out / "tuning", m)) for m in bench.ranked)
 
 
-def record_tuning_call(out: Path, commit, wall: float, runs: int) -> list[dict[str, Any]]:
-    """Add this call's commit, wall seconds to its choice and new tuning runs to
-    ``tuning/calls.json`` and return every call's: a resumed tuning's artefact names each commit
-    that ran part of it (and the one that chose), not only the last call's."""
+def record_tuning_call(
+    bench: BenchConfig, out: Path, commit, started: float, runs_before: int
+) -> list[dict[str, Any]]:
+    """Add this call's commit, wall seconds since ``started`` and tuning runs beyond
+    ``runs_before`` to ``tuning/calls.json`` and return every call's: a resumed tuning's artefact
+    names each commit that ran part of it (and the one that chose), not only the last call's."""
     path = out / "tuning" / "calls.json"
     calls = json.loads(path.read_text()) if path.is_file() else []
+    wall, runs = time.perf_counter() - started, tuning_runs(bench, out) - runs_before
     calls.append({"commit": commit, "wall_seconds": round(wall, 1), "runs": runs})
     path.parent.mkdir(parents=True, exist_ok=True)
     write_text_atomic(path, json.dumps(calls, indent=1) + "\n")
@@ -296,9 +299,7 @@ def run_bench(
         runs_before = tuning_runs(bench, out)
         chosen = tune(bench, out, execution)
         if not bench.borrowed:  # what it tuned, as the file a preset ships
-            calls = record_tuning_call(
-                out, commit, time.perf_counter() - started, tuning_runs(bench, out) - runs_before
-            )
+            calls = record_tuning_call(bench, out, commit, started, runs_before)
             artefact = write_tuning_artefact(bench, out, chosen, calls, argv)
             if tune_only:
                 return artefact
