@@ -186,6 +186,18 @@ def detectable(differences: list[list[float]], power: float = 0.8) -> float | No
     return float(t * np.median(spreads) / np.sqrt(n))
 
 
+def holm_rows(p_values: np.ndarray) -> np.ndarray:
+    """:func:`holm` on every row of a matrix of p-values at once (no None): what a resampling
+    needs, where statsmodels' one family a call took 45 ms a row (3 minutes for 4,000 boards).
+    A test holds it equal to :func:`holm`."""
+    p = np.asarray(p_values, dtype=float)
+    order = np.argsort(p, axis=1)
+    ranked = np.take_along_axis(p, order, axis=1) * (p.shape[1] - np.arange(p.shape[1]))
+    adjusted = np.empty_like(p)
+    np.put_along_axis(adjusted, order, np.minimum(np.maximum.accumulate(ranked, axis=1), 1), 1)
+    return adjusted
+
+
 def replication_agreement(
     differences: np.ndarray | list[list[float]],
     seeds: int | None = None,
@@ -198,24 +210,16 @@ def replication_agreement(
     differences from the reference on the same seeds, taken as the truth; each of ``draws``
     pairs of boards resamples ``seeds`` seeds (default: as many) with replacement, the same
     seeds for every method (their differences share the reference's runs), and tests each
-    method with the paired t-test, Holm over the methods."""
+    method with the paired t-test (a sample without spread: level), Holm over the methods."""
     d = np.asarray(differences, dtype=float)
-    methods, n = d.shape
+    n = d.shape[1]
     k = seeds or n
     rng = np.random.default_rng(seed)
 
     def verdicts() -> np.ndarray:
         sample = d[:, rng.integers(0, n, size=(draws, k))].transpose(1, 0, 2)  # draw, method, seed
-        mean, sd = sample.mean(axis=2), sample.std(axis=2, ddof=1)
         with np.errstate(divide="ignore", invalid="ignore"):
-            t = np.where(
-                sd > TIE, mean / (sd / np.sqrt(k)), np.where(np.abs(mean) > TIE, np.inf, 0)
-            )
-        p = 2 * stats.t.sf(np.abs(t), k - 1)
-        order = np.argsort(p, axis=1)  # Holm's step-down, a row a board
-        ranked = np.take_along_axis(p, order, axis=1) * (methods - np.arange(methods))
-        adjusted = np.empty_like(p)
-        np.put_along_axis(adjusted, order, np.minimum(np.maximum.accumulate(ranked, 1), 1), 1)
-        return np.where(adjusted < ALPHA, np.sign(mean), 0)
+            p = np.nan_to_num(stats.ttest_1samp(sample, 0.0, axis=2).pvalue, nan=1.0)
+        return np.where(holm_rows(p) < ALPHA, np.sign(sample.mean(axis=2)), 0)
 
     return float((verdicts() == verdicts()).mean())

@@ -64,11 +64,15 @@ def objective_so_far(result: Result, metric: str = "ade_k1") -> np.ndarray:
     return average_seen(result.matrices[metric][: len(result.summaries)])  # one a task learnt
 
 
+def trial_paths(out: Path, method: str) -> list[Path]:
+    """The ``result.json`` path of every finished trial job of ``method`` under the tuning
+    folder ``out``, pruned ones and the race's runs included."""
+    return list((out / "trials" / method).glob("*/jobs/*/seed_*/result.json"))
+
+
 def trial_results(out: Path, method: str) -> list[dict[str, Any]]:
-    """The ``result.json`` of every finished trial job of ``method`` under the tuning folder
-    ``out``, pruned ones and the race's runs included."""
-    paths = (out / "trials" / method).glob("*/jobs/*/seed_*/result.json")
-    return [json.loads(path.read_text()) for path in paths]
+    """The ``result.json`` of every finished trial job of ``method`` (:func:`trial_paths`)."""
+    return [json.loads(path.read_text()) for path in trial_paths(out, method)]
 
 
 def trial_seconds(out: Path, method: str) -> float:

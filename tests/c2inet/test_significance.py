@@ -139,3 +139,11 @@ def test_seed_noise_alone_caps_how_often_two_boards_agree_and_more_seeds_raise_t
     assert 0.4 < cap < 0.85  # a coin toss for a method whose p sits at the threshold
     assert replication_agreement(at_threshold, seeds=40) > cap + 0.1
     assert replication_agreement(at_threshold) == cap  # a fixed generator: the same figure
+
+
+def test_holm_on_rows_is_holm_on_each_row():
+    from c2inet.significance import holm_rows
+
+    rng = np.random.default_rng(11)
+    p = rng.uniform(0, 0.1, (20, 7))
+    np.testing.assert_allclose(holm_rows(p), [holm(list(row)) for row in p])

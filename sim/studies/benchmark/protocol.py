@@ -41,7 +41,7 @@ from sim.experiment.outputs import COLUMNS, git_commit, tidy_rows, write_report,
 from sim.experiment.staged import run_staged
 from sim.experiment.storage import check_storage
 from sim.experiment.sweep import layered, plan, run_together
-from sim.experiment.trials import trial_results, trial_seconds
+from sim.experiment.trials import trial_paths, trial_results, trial_seconds
 from sim.experiment.tuning import run_tuning
 from sim.studies.benchmark.artefacts import write_artefact
 from sim.studies.benchmark.board_markdown import leaderboard_markdown
@@ -184,8 +184,9 @@ def tune(bench: BenchConfig, out: Path, execution: Execution) -> dict[str, dict[
 
 
 def tuning_runs(bench: BenchConfig, out: Path) -> int:
-    """How many tuning runs of the ranked methods have finished under ``out``."""
-    return sum(len(trial_results(out / "tuning", m)) for m in bench.ranked)
+    """How many tuning runs of the ranked methods have finished under ``out`` (counted, not
+    read: a tuning holds hundreds)."""
+    return sum(len(trial_paths(out / "tuning", m)) for m in bench.ranked)
 
 
 def record_tuning_call(
