@@ -25,6 +25,7 @@ from c2inet.errors import InputError
 from c2inet.options import Choice, Tunable
 
 EDGE = 0.05  # a choice within this share of its (log) range of a bound is marked
+KEEP_RULES = ("mean", "every-draw")  # when the defaults are kept over the walk's choice
 
 
 @dataclass(frozen=True)
@@ -32,7 +33,10 @@ class Design:
     """``lr_low``..``lr_high``: stage 1's log grid of ``lr_points`` learning rates, shifted by
     ``offset`` of a grid step (a second design); ``draws``: the data draws every setting is
     scored on; ``spread``: a further knob's neighbours lie this share of its (log) range either
-    side of its default; ``extend``: the points a stage may add beyond its grid's edge."""
+    side of its default; ``extend``: the points a stage may add beyond its grid's edge;
+    ``keep_defaults``: when the defaults, scored beside the walk's choice on the same draws, are
+    kept instead of it: ``mean`` (a lower mean over the draws) or ``every-draw`` (lower on each
+    draw: a tie within the draws' noise keeps the walk's choice)."""
 
     lr_low: float = 1e-4
     lr_high: float = 1e-2
@@ -41,6 +45,7 @@ class Design:
     spread: float = 0.25
     offset: float = 0.0
     extend: int = 3
+    keep_defaults: str = "mean"
 
     def __post_init__(self):
         if not 0 < self.lr_low < self.lr_high:
@@ -49,13 +54,36 @@ class Design:
             raise InputError("design: at least 3 learning rates, 1 draw and 0 extensions")
         if not 0 < self.spread <= 0.5 or not -1 < self.offset < 1:
             raise InputError("design: spread in (0, 0.5], offset in (-1, 1)")
+        if self.keep_defaults not in KEEP_RULES:
+            rules = ", ".join(KEEP_RULES)
+            raise InputError(f"design: keep_defaults {self.keep_defaults!r}, not one of {rules}")
 
     def to_json(self) -> dict[str, Any]:
-        return {"kind": "staged", **asdict(self)}
+        """The design as an artefact names it; the default rule for the defaults unnamed, as
+        every tuning made before the rule was an option has it (a resumed tuning is the same)."""
+        plain = asdict(self)
+        if plain["keep_defaults"] == "mean":
+            del plain["keep_defaults"]
+        return {"kind": "staged", **plain}
+
+    def keeps_defaults(self, defaults: list[float], chosen: list[float]) -> bool:
+        """Whether the defaults' scores on the draws beat the walk's choice's under this rule;
+        a NaN (a diverged run) never beats and is always beaten."""
+        if not all(math.isfinite(d) for d in defaults):
+            return False
+        if not all(math.isfinite(c) for c in chosen):
+            return True
+        if self.keep_defaults == "every-draw":
+            return all(d < c for d, c in zip(defaults, chosen, strict=True))
+        return float(np.mean(defaults)) < float(np.mean(chosen))
 
     def shifted(self, offset: float = 0.5) -> Design:
         """The same design with its grids moved by ``offset`` of a step: a second design."""
         return Design(**{**asdict(self), "offset": offset})
+
+    def keeping(self, rule: str) -> Design:
+        """The same design with ``rule`` for when the defaults are kept."""
+        return Design(**{**asdict(self), "keep_defaults": rule})
 
     def first_points(self, key: str, space: Tunable | Choice, default: Any) -> list[Any]:
         """A stage's first grid: the learning rate's log grid, or a knob's default and its two

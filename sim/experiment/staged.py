@@ -104,12 +104,10 @@ class Runner:
                 "objective": round(final, 6) if math.isfinite(final) else None,
                 "cpu_seconds": job.cpu_seconds,
             }
-        means = []
-        for search, _, params in wanted:
-            names = [run_name(params, d) for d in range(self.design.draws)]
-            scores = [search.runs[name]["objective"] for name in names]
-            means.append(math.inf if None in scores else float(np.mean(scores)))
-        return means
+        return [float(np.mean(self.draws(search, params))) for search, _, params in wanted]
+
+    def draws(self, search: MethodSearch, params: dict[str, Any]) -> list[float]:
+        return on_draws(search, params, self.design.draws)
 
     def plan(self, method: str, params: dict[str, Any], draw: int, name: str):
         """One run: ``method`` with ``params`` on draw ``draw``'s data, validation splits only."""
@@ -159,11 +157,11 @@ def run_staged(
         for search in active:
             advance(search, design, {v: next(means) for v in search.points})
     # the chosen settings and the defaults once more, on the same draws: their objectives
-    chosen_means = runner.score([(s, "chosen", s.fixed) for s in searches])
-    default_means = runner.score([(s, "defaults", s.defaults) for s in searches])
+    runner.score([(s, "chosen", s.fixed) for s in searches])
+    runner.score([(s, "defaults", s.defaults) for s in searches])
     chosen = {
-        s.method: record(s, objective, default)
-        for s, objective, default in zip(searches, chosen_means, default_means, strict=True)
+        s.method: record(s, runner.draws(s, s.fixed), runner.draws(s, s.defaults), design)
+        for s in searches
     }
     return write_chosen(out, base.methods, chosen)
 
@@ -199,17 +197,24 @@ def advance(search: MethodSearch, design: Design, means: dict[Any, float]) -> No
         search.points = design.first_points(key, search.space[key], search.defaults[key])
 
 
-def record(search: MethodSearch, objective: float, default: float) -> dict[str, Any]:
-    """A method's entry of ``tuning.json`` and of the artefact. The defaults are a candidate,
-    as they are Optuna's first trial: where they score better than the stages' choice on the
-    same draws they are kept (``kept``), since a walk one knob at a time can end worse than it
-    began (C2INet-online on density: 0.450 chosen against 0.439 for its defaults)."""
-    kept = "defaults" if _better(default, objective) else "stages"
+def record(
+    search: MethodSearch,
+    chosen: list[float],
+    defaults: list[float],
+    design: Design | None = None,
+) -> dict[str, Any]:
+    """A method's entry of ``tuning.json`` and of the artefact, from the stages' choice's and
+    the defaults' scores on each draw (infinite where a run diverged). The defaults are a
+    candidate, as they are Optuna's first trial: where they beat the choice on the same draws
+    (by ``design.keep_defaults``) they are kept (``kept``), since a walk one knob at a time can
+    end worse than it began (C2INet-online on density: 0.450 chosen against 0.439)."""
+    rule = design or Design()
+    kept = "defaults" if rule.keeps_defaults(defaults, chosen) else "stages"
     params = search.defaults if kept == "defaults" else search.fixed
     return {
         "settings": as_settings(search.method, params),
-        "objective": _finite(objective),
-        "default_objective": _finite(default),
+        "objective": _finite(float(np.mean(chosen))),
+        "default_objective": _finite(float(np.mean(defaults))),
         "kept": kept,
         "stages": search.stages,
         "at_bound": {
@@ -219,11 +224,35 @@ def record(search: MethodSearch, objective: float, default: float) -> dict[str, 
     }
 
 
-def _better(candidate: float, incumbent: float) -> bool:
-    """Strictly lower, a NaN never better and always beaten."""
-    if not math.isfinite(candidate):
-        return False
-    return not math.isfinite(incumbent) or candidate < incumbent
+def on_draws(search: MethodSearch, params: dict[str, Any], draws: int) -> list[float]:
+    """A setting's score on each draw, already run (infinite where it diverged)."""
+    scores = [search.runs[run_name(params, d)]["objective"] for d in range(draws)]
+    return [math.inf if s is None else s for s in scores]
+
+
+def reselect(artefact: dict[str, Any], design: Design) -> dict[str, dict[str, Any]]:
+    """Every method's entry of a staged ``artefact`` chosen anew from the runs it recorded,
+    keeping the defaults by ``design.keep_defaults``: another rule costs no run. The stages'
+    choices are the artefact's; the defaults are the configuration's (as the tuning's were)."""
+    methods = artefact["methods"]
+    base = ExperimentConfig(scenario=artefact["scenario"], methods=tuple(methods))
+    draws = artefact["design"]["draws"]
+    out = {}
+    for method, entry in methods.items():
+        if "kept" not in entry:  # nothing to tune
+            out[method] = entry
+            continue
+        space = search_space(method)
+        defaults = default_params(method, space, base)
+        fixed = {stage["knob"]: stage["chosen"] for stage in entry["stages"]}
+        runs = {run_name(r["params"], r["draw"]): r for r in entry["trials"]}
+        search = MethodSearch(
+            method, space, {k: fixed[k] for k in defaults}, defaults, list(defaults),
+            stages=entry["stages"], runs=runs,
+        )  # fmt: skip
+        chosen, kept = on_draws(search, search.fixed, draws), on_draws(search, defaults, draws)
+        out[method] = record(search, chosen, kept, design)
+    return out
 
 
 def run_name(params: dict[str, Any], draw: int) -> str:

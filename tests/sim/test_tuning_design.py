@@ -70,16 +70,39 @@ def test_the_defaults_are_kept_where_they_score_better_than_the_stages_choice():
         ["train.lr", "strength"],
         stages=[{"knob": "strength", "chosen": 1e4, "at_bound": "high"}],
     )  # fmt: skip
-    worse = record(search, objective=0.450, default=0.439)
+    worse = record(search, chosen=[0.450], defaults=[0.439])
     assert worse["kept"] == "defaults" and worse["at_bound"] == {}
     assert worse["settings"] == {"train": {"lr": 3e-3}, "ewc": {"strength": 1.0}}
     assert (worse["objective"], worse["default_objective"]) == (0.450, 0.439)
-    better = record(search, objective=0.430, default=0.439)
+    better = record(search, chosen=[0.430], defaults=[0.439])
     assert better["kept"] == "stages" and better["at_bound"] == {"strength": "high"}
     assert better["settings"] == {"train": {"lr": 1e-2}, "ewc": {"strength": 1e4}}
-    assert record(search, objective=math.nan, default=0.5)["kept"] == "defaults"
-    assert record(search, objective=0.5, default=math.nan)["kept"] == "stages"
-    assert record(search, objective=0.5, default=0.5)["kept"] == "stages"  # a tie: the walk's
+    assert record(search, chosen=[math.inf], defaults=[0.5])["kept"] == "defaults"
+    diverged = record(search, chosen=[0.5], defaults=[math.inf])
+    assert diverged["kept"] == "stages" and diverged["default_objective"] is None
+    assert record(search, chosen=[0.5], defaults=[0.5])["kept"] == "stages"  # a tie: the walk's
+
+
+def test_the_rule_that_keeps_the_defaults_is_an_option_of_the_design():
+    """``mean`` keeps the defaults on a lower mean over the draws (as every shipped tuning was
+    made), ``every-draw`` only where they are lower on each draw: noise's fine-tuning, its
+    defaults 0.4 cm better on the mean and 0.5 cm worse on one draw, keeps the walk's rate.
+    The default rule is left out of the design's JSON, so older artefacts name the same design."""
+    search = MethodSearch("finetune", {"train.lr": LR}, {"train.lr": 7e-4}, {"train.lr": 3e-3},
+                          ["train.lr"])  # fmt: skip
+    chosen, defaults = [0.705576, 0.735331], [0.711041, 0.721142]  # noise's two draws
+    assert record(search, chosen, defaults)["kept"] == "defaults"
+    every = Design(keep_defaults="every-draw")
+    assert record(search, chosen, defaults, every)["settings"] == {"train": {"lr": 7e-4}}
+    assert record(search, chosen, [0.7050, 0.7350], every)["kept"] == "defaults"
+    assert "keep_defaults" not in Design().to_json()
+    assert every.to_json()["keep_defaults"] == "every-draw"
+    from sim.studies.benchmark.board_markdown import _design_text  # what a board says of it
+
+    assert "on every draw" in _design_text(every.to_json())
+    assert "on every draw" not in _design_text(Design().to_json())
+    with pytest.raises(InputError, match="keep_defaults 'median'"):
+        Design(keep_defaults="median")
 
 
 def test_a_choice_at_a_bound_and_kept_defaults_are_marked_on_the_board():
@@ -297,22 +320,32 @@ def test_a_setting_two_stages_ask_runs_once(staged):
         assert len(keys) == len(set(keys))  # no setting ran twice on one draw
 
 
-def test_the_shipped_tunings_are_the_committed_boards_own():
-    """The preset whose shipped tuning is a committed board's Optuna tuning: made from that
-    board by ``from_board``, its settings equal to the board's tuning.json."""
-    import tempfile
+@pytest.mark.parametrize(
+    ("folder", "preset", "source"),
+    [
+        ("radius-shipped", "radius", "radius-compiled"),
+        ("noise-shipped", "noise", "noise"),
+        ("traffic-shipped", "traffic", "traffic"),
+    ],
+)
+def test_a_board_of_an_optuna_tuning_keeps_the_artefact_it_ran(
+    folder, preset, source, tmp_path, monkeypatch
+):
+    """The artefacts that shipped before the staged ones were made from a committed board's
+    Optuna tuning: the board evaluated from one keeps it beside it, the very bytes its
+    leaderboard names by SHA-256, and ``from_board`` remakes it byte for byte from the source
+    board's tuning.json (run from the repository's root, as it was made)."""
+    import hashlib
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[2]
-    for preset in ("traffic",):
-        shipped = json.loads(artefacts.shipped(preset).read_text())
-        board = root / "docs" / "leaderboards" / preset
-        with tempfile.TemporaryDirectory() as tmp:
-            made = artefacts.from_board(board, preset, Path(tmp) / "a.json")
-        assert (
-            made["methods"] == shipped["methods"] == json.loads((board / "tuning.json").read_text())
-        )
-        assert shipped["design"]["kind"] == "optuna" and shipped["provenance"]["sha256"]
+    kept = root / "docs" / "leaderboards" / folder / f"{preset}.json"
+    named = json.loads((kept.parent / "leaderboard.json").read_text())["tuned_from"]
+    assert hashlib.sha256(kept.read_bytes()).hexdigest() == named["sha256"]
+    monkeypatch.chdir(root)
+    artefacts.from_board(Path("docs/leaderboards") / source, preset, tmp_path / "a.json")
+    assert (tmp_path / "a.json").read_bytes() == kept.read_bytes()
+    assert json.loads(kept.read_text())["design"]["kind"] == "optuna"
 
 
 @pytest.mark.parametrize(
@@ -384,3 +417,79 @@ def test_sim_run_and_sim_bench_read_a_name_alike(tmp_path, monkeypatch):
     settings, path = artefacts.tuned_settings("radius", ("finetune",), 2)
     assert Path(path) == artefacts.shipped("radius") and settings["train"]["batch_scenes"] == 16
     assert settings["data"] == {"splits.train": 200}
+
+
+def test_keep_defaults_sets_the_staged_designs_rule_and_is_refused_elsewhere(capsys, tmp_path):
+    """``--keep-defaults`` reaches the design a tuning runs; without ``--retune`` (the board
+    evaluates its shipped tuning) or with Optuna's design it is one line, exit 2."""
+    from argparse import Namespace
+
+    from sim.studies.benchmark import Benchmark
+
+    args = Namespace(
+        retune=True, tune_only=False, tuned_from=None, design=None, design_offset=0.5,
+        keep_defaults="every-draw", trials=10, prune=False, race=0, sampler="tpe",
+        tune_scenario=None, tuning_seed=None, storage=None,
+    )  # fmt: skip
+    _, design = Benchmark().tuning_source(args, PRESETS["noise"])
+    assert design == PRESETS["noise"].design.shifted(0.5).keeping("every-draw")
+    for extra in (["--design", "optuna", "--retune"], []):
+        argv = ["noise", "--keep-defaults", "every-draw", *extra, "--out", str(tmp_path / "x")]
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert "--keep-defaults" in err and err.count("\n") == 1
+    assert not (tmp_path / "x").exists()
+
+
+def test_every_shipped_staged_tuning_is_what_its_rule_reselects_from_its_own_runs():
+    """``reselect`` chooses every method's entry anew from the runs an artefact recorded: under
+    the default rule (a lower mean keeps the defaults) it remakes each staged artefact that
+    ships entry for entry, so the rule is live and the runs are the choice's; under
+    ``every-draw`` it keeps the walk's choice instead for the methods the docs name
+    (``docs/benchmark.md``, "When the defaults are kept"), at no run."""
+    from sim.experiment.staged import reselect
+
+    moved = set()
+    for preset in PRESETS:
+        artefact = json.loads(artefacts.shipped(preset).read_text())
+        if artefact["design"]["kind"] != "staged":
+            continue
+        assert reselect(artefact, Design()) == artefact["methods"], preset
+        every = reselect(artefact, Design(keep_defaults="every-draw"))
+        for method, entry in every.items():
+            if entry.get("kept") != artefact["methods"][method].get("kept"):
+                assert entry["kept"] == "stages"  # it only ever keeps the defaults less often
+                moved.add(f"{preset}:{method}")
+    assert moved == MOVED_BY_EVERY_DRAW
+
+
+MOVED_BY_EVERY_DRAW = {
+    "radius:c2inet-offline",
+    "density:c2inet-online",
+    "density:coresets",
+    "noise:coresets",
+    "noise:finetune",
+    "noise:lwf",
+    "noise:si",
+    "eth-ucy:counterfactual",
+    "eth-ucy:derpp",
+}
+
+
+def test_a_reselected_artefact_names_its_rule_and_source_and_only_a_staged_one_is(tmp_path):
+    """``artefacts.reselected`` (``scripts/reselect_tuning.py``) writes an artefact a board can
+    evaluate: the rule in its design, the file it came from by SHA-256, noise's fine-tuning at the
+    walk's learning rate; an Optuna artefact has no draws to compare and is one line."""
+    from pathlib import Path
+
+    from c2inet.files import file_digest
+
+    made = artefacts.reselected(Path("noise"), "every-draw", tmp_path / "noise.json")
+    assert made["design"]["keep_defaults"] == "every-draw"
+    assert made["provenance"]["sha256"] == file_digest(artefacts.shipped("noise"))
+    assert made["methods"]["finetune"]["settings"] == {"train": {"lr": 0.0007028831112648117}}
+    assert artefacts.read_tuning(tmp_path / "noise.json")[2] == made["methods"]
+    optuna = Path(__file__).resolve().parents[2] / "docs/leaderboards/traffic-shipped/traffic.json"
+    with pytest.raises(InputError, match="not a staged tuning's artefact"):
+        artefacts.reselected(optuna, "every-draw", tmp_path / "no.json")
+    assert not (tmp_path / "no.json").exists()

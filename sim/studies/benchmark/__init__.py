@@ -140,6 +140,13 @@ def add_artefact_options(p) -> None:
         metavar="STEPS",
         help="move the staged design's grids by this share of a step (a second design)",
     )
+    g.add_argument(
+        "--keep-defaults",
+        choices=("mean", "every-draw"),  # sim.experiment.design.KEEP_RULES, not imported by --help
+        help="when the staged design keeps a method's defaults over its walk's choice: mean "
+        "(a lower mean over the draws; the default, as every shipped tuning was made) or "
+        "every-draw (lower on each draw)",
+    )
 
 
 def add_evaluation_options(p) -> None:
@@ -304,9 +311,15 @@ class Benchmark(Study):
         if kind == "optuna":
             if args.design_offset is not None:
                 raise InputError("--design-offset moves the staged design's grids; not optuna's")
+            if args.keep_defaults is not None:
+                raise InputError("--keep-defaults is the staged design's rule; not optuna's")
             return None, None
         design = preset.design if preset else designs.Design()
-        return None, design if args.design_offset is None else design.shifted(args.design_offset)
+        if args.design_offset is not None:
+            design = design.shifted(args.design_offset)
+        if args.keep_defaults is not None:
+            design = design.keeping(args.keep_defaults)
+        return None, design
 
     @staticmethod
     def tuning_flags(args) -> list[tuple[str, bool]]:
@@ -320,6 +333,7 @@ class Benchmark(Study):
             ("--tuning-seed", args.tuning_seed is not None),
             ("--design", args.design is not None),
             ("--design-offset", args.design_offset is not None),
+            ("--keep-defaults", args.keep_defaults is not None),
             ("--storage", args.storage is not None),
         ]
 

@@ -224,3 +224,36 @@ def tunable_only(where: str, method: str, settings: dict[str, dict[str, Any]]) -
                 raise InputError(
                     f"{where}: {scope}.{key} is outside {method}'s search space ({known})"
                 )
+
+
+def reselected(given: Path, rule: str, out: Path) -> dict[str, Any]:
+    """A staged artefact (a file, a board's folder or a preset's name) chosen anew from its own
+    runs with ``rule`` keeping the defaults (``sim.experiment.staged.reselect``: no run), written
+    to ``out`` with its design saying the rule and its provenance the file it came from."""
+    from dataclasses import fields
+
+    from sim.experiment.design import Design
+    from sim.experiment.staged import reselect
+
+    path, artefact, _ = read_tuning(given, "reselect")
+    named = artefact.get("design") or {}
+    if artefact.get("format") is None or named.get("kind") != "staged":
+        raise InputError(f"{path}: not a staged tuning's artefact; only its runs can be reselected")
+    design = Design(**{f.name: named[f.name] for f in fields(Design) if f.name in named})
+    design = design.keeping(rule)
+    provenance = {
+        "reselected_from": shown(path),
+        "sha256": file_digest(path),
+        "keep_defaults": rule,
+        "tuned": artefact["provenance"],
+    }
+    return write_artefact(
+        out,
+        artefact["preset"],
+        artefact["scenario"],
+        artefact["tune_scenario"],
+        {**named, **design.to_json()},  # the design's other words (its metric) kept
+        artefact["seed"],
+        provenance,
+        reselect(artefact, design),
+    )

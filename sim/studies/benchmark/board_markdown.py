@@ -65,6 +65,11 @@ def _design_text(design: dict[str, Any] | None) -> str:
             f"the staged design: learning rates {design['lr_low']:g} to {design['lr_high']:g} "
             f"on {design['lr_points']} points (offset {design['offset']:g}), each knob in turn, "
             f"every setting on the same {design['draws']} data draws"
+            + (
+                ", the defaults kept over the walk's choice only where better on every draw"
+                if design.get("keep_defaults") == "every-draw"
+                else ""
+            )
         )
     return f"{design['trials']} Optuna trials a method ({design['sampler']}), one data draw a trial"
 
