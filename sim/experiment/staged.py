@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from c2inet.errors import InputError
 from c2inet.options import Choice
 from sim.experiment.config import Execution, ExperimentConfig
 from sim.experiment.design import Design, choose, near_bound
@@ -233,7 +234,8 @@ def on_draws(search: MethodSearch, params: dict[str, Any], draws: int) -> list[f
 def reselect(artefact: dict[str, Any], design: Design) -> dict[str, dict[str, Any]]:
     """Every method's entry of a staged ``artefact`` chosen anew from the runs it recorded,
     keeping the defaults by ``design.keep_defaults``: another rule costs no run. The stages'
-    choices are the artefact's; the defaults are the configuration's (as the tuning's were)."""
+    choices are the artefact's, the defaults the package's (as every shipped tuning's were; a
+    tuning made under ``--set train.lr=...`` had others, and its runs would not be found)."""
     methods = artefact["methods"]
     base = ExperimentConfig(scenario=artefact["scenario"], methods=tuple(methods))
     draws = artefact["design"]["draws"]
@@ -250,8 +252,13 @@ def reselect(artefact: dict[str, Any], design: Design) -> dict[str, dict[str, An
             method, space, {k: fixed[k] for k in defaults}, defaults, list(defaults),
             stages=entry["stages"], runs=runs,
         )  # fmt: skip
-        chosen, kept = on_draws(search, search.fixed, draws), on_draws(search, defaults, draws)
-        out[method] = record(search, chosen, kept, design)
+        try:
+            chosen = on_draws(search, search.fixed, draws)
+            default = on_draws(search, defaults, draws)
+        except KeyError:
+            raise InputError(f"{method}: no recorded run of {defaults} (tuned under other "
+                             "defaults?): cannot reselect") from None  # fmt: skip
+        out[method] = record(search, chosen, default, design)
     return out
 
 

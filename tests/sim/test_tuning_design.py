@@ -493,3 +493,9 @@ def test_a_reselected_artefact_names_its_rule_and_source_and_only_a_staged_one_i
     with pytest.raises(InputError, match="not a staged tuning's artefact"):
         artefacts.reselected(optuna, "every-draw", tmp_path / "no.json")
     assert not (tmp_path / "no.json").exists()
+    planted = json.loads(artefacts.shipped("noise").read_text())  # its defaults' runs lost
+    trials = planted["methods"]["finetune"]["trials"]
+    trials[:] = [r for r in trials if r["params"] != {"train.lr": 0.003}]
+    (tmp_path / "planted.json").write_text(json.dumps(planted))
+    with pytest.raises(InputError, match="finetune: no recorded run of"):
+        artefacts.reselected(tmp_path / "planted.json", "every-draw", tmp_path / "no.json")
