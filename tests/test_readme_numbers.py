@@ -90,6 +90,29 @@ def test_noise_verdicts_are_those_both_of_its_tunings_star():
     assert verdicts["c2inet-online"] == ["level", "level"]
 
 
+def test_traffic_verdicts_are_those_both_of_its_tunings_star():
+    """The adaptive baseline and invariant behind fine-tuning under both tunings of traffic at
+    the quoted gaps, nothing ahead under either, PECNet behind by the staged board's test alone,
+    C2INet-online level under both at the quoted gaps."""
+    from sim.studies.benchmark.stability import stability
+
+    boards = ("traffic-shipped", "traffic-staged-all")
+    quotes = quoted(
+        r"behind it under both\*\* \(\+(0\.\d+) and \+(0\.\d+) m; \+(0\.\d+) and \+(0\.\d+)\)"
+    )
+    assert quotes == [round(difference(b, m), 3) for m in ("adaptive", "invariant") for b in boards]
+    online = quoted(r"by tuning\*\* \(\+(0\.\d+) and -(0\.\d+) m\)")
+    assert online == [abs(round(difference(b, "c2inet-online"), 3)) for b in boards]
+    verdicts = {
+        m: e["verdicts"] for m, e in stability([BOARDS / b for b in boards])["methods"].items()
+    }
+    both = {m: v[0] for m, v in verdicts.items() if v[0] == v[1] and v[0] != "level"}
+    assert both == {"adaptive": "behind", "invariant": "behind"}
+    assert verdicts["pecnet"] == ["level", "behind"]
+    assert verdicts["c2inet-online"] == ["level", "level"]
+    assert not any("ahead" in v for v in verdicts.values())
+
+
 def test_the_sim_to_real_ranking_is_the_committed_boards_tau():
     (tau,) = quoted(r"Kendall's tau \+(0\.\d\d) \[")
     spec = importlib.util.spec_from_file_location("transfer", ROOT / "scripts/ranking_transfer.py")

@@ -232,7 +232,7 @@ def test_a_board_evaluates_its_presets_shipped_tuning_and_runs_no_trial(
     shipped = tmp_path / "tunings"
     shipped.mkdir()
     planted = {
-        "finetune": {"settings": {"train": {"lr": 0.00123}}, "trials": []},
+        "finetune": {"settings": {"train": {"lr": 0.00123}}, "trials": [], "kept": "defaults"},
         "cv": {"settings": {}, "trials": []},
     }
     artefacts.write_artefact(
@@ -258,6 +258,8 @@ def test_a_board_evaluates_its_presets_shipped_tuning_and_runs_no_trial(
     assert board["tuned_from"]["file"] == "sim/studies/benchmark/tunings/noise.json"
     assert board["tuned_from"]["design"]["kind"] == "staged"
     assert "rests on that one tuning" in (out / "leaderboard.md").read_text()
+    (entry,) = [e for e in board["entries"] if e["method"] == "finetune"]
+    assert entry["kept"] == "defaults"  # the artefact's mark carried onto the board
     capsys.readouterr()
     assert main([*argv, "--trials", "3", "--out", str(tmp_path / "no")]) == 2
     err = capsys.readouterr().err
@@ -354,16 +356,17 @@ def test_a_board_of_an_optuna_tuning_keeps_the_artefact_it_ran(
         ("radius", "radius-staged-all", "ade_k1"),
         ("density", "density-staged-all", "ade_k1"),
         ("noise", "noise-staged-all", "ade_k1"),
+        ("traffic", "traffic-staged-all", "ade_k1"),
         ("eth-ucy", "eth-ucy", "ade"),
     ],
 )
 def test_a_staged_shipped_tuning_is_its_boards_own_and_its_bounds_are_marked(
     preset, folder, metric
 ):
-    """The radius, density, noise and eth-ucy boards tuned every method by the staged design,
-    scoring what the board ranks, and wrote the artefact that ships, byte for byte; every knob
-    chosen at a bound of its range is marked on the board (on eth-ucy no learning rate is), and so
-    is every method whose defaults were kept."""
+    """Every preset's board tuned every method by the staged design, scoring what the board
+    ranks, and wrote the artefact that ships, byte for byte; every knob chosen at a bound of
+    its range is marked on the board (on eth-ucy no learning rate is), and so is every method
+    whose defaults were kept."""
     from pathlib import Path
 
     board = Path(__file__).resolve().parents[2] / "docs" / "leaderboards" / folder
@@ -471,6 +474,8 @@ MOVED_BY_EVERY_DRAW = {
     "noise:finetune",
     "noise:lwf",
     "noise:si",
+    "traffic:derpp",
+    "traffic:finetune",
     "eth-ucy:counterfactual",
     "eth-ucy:derpp",
 }

@@ -70,8 +70,16 @@ def borrowed_tuning(
             source["tune_scenario"] = tuned_on["tune_scenario"]
         if isinstance(tuned_on, dict) and tuned_on.get("metric") in RANKABLE:
             source["metric"] = tuned_on["metric"]  # what its tuning scored (K = 1 if unsaid)
-    # no trial ran here: the board counts none, and says whose settings it used
-    return {m: {"settings": chosen[m]["settings"], "trials": []} for m in ranked}, source
+    # no trial ran here: the board counts none, says whose settings it used, and marks the
+    # methods whose tuning kept their defaults (a staged artefact says which)
+    return {
+        m: {
+            "settings": chosen[m]["settings"],
+            "trials": [],
+            **({"kept": "defaults"} if chosen[m].get("kept") == "defaults" else {}),
+        }
+        for m in ranked
+    }, source
 
 
 def references(methods: tuple[str, ...]) -> tuple[str, ...]:
