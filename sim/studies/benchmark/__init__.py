@@ -143,9 +143,9 @@ def add_artefact_options(p) -> None:
     g.add_argument(
         "--keep-defaults",
         choices=("mean", "every-draw"),  # sim.experiment.design.KEEP_RULES, not imported by --help
-        help="when the staged design keeps a method's defaults over its walk's choice: mean "
-        "(a lower mean over the draws; the default, as every shipped tuning was made) or "
-        "every-draw (lower on each draw)",
+        help="when the staged design keeps a method's defaults over its walk's choice: "
+        "every-draw (lower on each draw; the default) or mean (a lower mean over the draws, "
+        "as every shipped tuning was made)",
     )
 
 

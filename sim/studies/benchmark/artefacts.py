@@ -239,8 +239,8 @@ def reselected(given: Path, rule: str, out: Path) -> dict[str, Any]:
     named = artefact.get("design") or {}
     if artefact.get("format") is None or named.get("kind") != "staged":
         raise InputError(f"{path}: not a staged tuning's artefact; only its runs can be reselected")
-    design = Design(**{f.name: named[f.name] for f in fields(Design) if f.name in named})
-    design = design.keeping(rule)
+    shape = {f.name: named[f.name] for f in fields(Design) if f.name in named}
+    design = Design(**shape).keeping(rule)
     provenance = {
         "reselected_from": shown(path),
         "sha256": file_digest(path),

@@ -68,7 +68,7 @@ def _design_text(design: dict[str, Any] | None) -> str:
             + (
                 ", the defaults kept over the walk's choice only where better on every draw"
                 if design.get("keep_defaults") == "every-draw"
-                else ""
+                else ", the defaults kept over the walk's choice where better on the mean"
             )
         )
     return f"{design['trials']} Optuna trials a method ({design['sampler']}), one data draw a trial"

@@ -57,7 +57,12 @@ def settings_effect(first: Path, second: Path) -> dict[str, Any]:
 
 def settings_effect_markdown(result: dict[str, Any]) -> str:
     """One table row a method whose settings differ, then the methods that matched."""
-    first, second = (Path(b).name for b in result["boards"])
+    first, second = (Path(b) for b in result["boards"])
+    first, second = (  # two boards of one name (a preset's) by their folders too
+        (f"{first.parent.name}/{first.name}", f"{second.parent.name}/{second.name}")
+        if first.name == second.name
+        else (first.name, second.name)
+    )
     lines = [
         f"| method | `{first}` | `{second}` | 2nd minus 1st [95 % CI] | t p (Holm) | sign-flip p |",
         "|---|---|---|---|---|---|",
