@@ -42,3 +42,36 @@ def test_the_same_settings_giving_other_values_is_refused(tmp_path):
     (planted / "leaderboard.json").write_text(json.dumps(board))
     with pytest.raises(InputError, match="finetune: the same settings gave other values"):
         settings_effect(planted, BOARDS / "noise-staged-all")
+
+
+@pytest.mark.parametrize(
+    ("preset", "board", "moved"),
+    [
+        ("noise", "noise-staged-all", {"coresets", "finetune", "lwf", "si"}),
+        ("traffic", "traffic-staged-all", {"derpp", "finetune"}),
+        ("eth-ucy", "eth-ucy", {"counterfactual", "derpp"}),
+        ("density", "density-staged-all", {"c2inet-online", "coresets"}),
+        ("radius", "radius-staged-all", {"c2inet-offline"}),
+    ],
+)
+def test_the_keep_rule_check_is_the_shipped_tuning_reselected_and_its_page_current(
+    preset, board, moved
+):
+    """Each board of ``keep-every-draw/`` evaluated exactly what ``reselect`` makes of the
+    shipped artefact under ``every-draw`` (the methods the rules split, with fine-tuning), and
+    its table on the folder's page is what ``settings_effect`` computes from the two boards."""
+    from sim.experiment.design import Design
+    from sim.experiment.staged import reselect
+    from sim.studies.benchmark import artefacts
+
+    check = BOARDS / "keep-every-draw" / preset
+    artefact = json.loads((check / f"{preset}.json").read_text())
+    shipped = json.loads(artefacts.shipped(preset).read_text())
+    assert artefact["methods"] == reselect(shipped, Design(keep_defaults="every-draw"))
+    ran = {e["method"]: e["settings"] for e in json.loads((check / "leaderboard.json").read_text())
+           ["entries"]}  # fmt: skip
+    assert set(ran) == moved | {"finetune"}
+    assert all(ran[m] == artefact["methods"][m]["settings"] for m in ran)
+    result = settings_effect(BOARDS / board, check)
+    assert {r["method"] for r in result["rows"]} == moved
+    assert settings_effect_markdown(result) in (check.parent / "README.md").read_text()

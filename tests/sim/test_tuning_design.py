@@ -450,8 +450,8 @@ def test_every_shipped_staged_tuning_is_what_its_rule_reselects_from_its_own_run
     """``reselect`` chooses every method's entry anew from the runs an artefact recorded: under
     the rule they were made by (a lower mean keeps the defaults) it remakes each staged artefact
     that ships entry for entry, so the rule is live and the runs are the choice's; under
-    ``every-draw`` it keeps the walk's choice instead for the methods the docs name
-    (``docs/benchmark.md``, "When the defaults are kept"), at no run."""
+    ``every-draw`` it keeps the walk's choice instead for the methods
+    ``docs/leaderboards/keep-every-draw/`` evaluated, at no run."""
     from sim.experiment.staged import reselect
 
     moved = set()
