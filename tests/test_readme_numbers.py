@@ -113,6 +113,31 @@ def test_traffic_verdicts_are_those_both_of_its_tunings_star():
     assert not any("ahead" in v for v in verdicts.values())
 
 
+def test_the_keep_rule_figures_are_the_committed_check_boards():
+    """The walk's choice against the kept defaults, method by method on each preset's seeds:
+    how many it beats, by how much on average, and fine-tuning's gain on traffic and noise."""
+    from sim.studies.benchmark.settings_effect import settings_effect
+
+    published = {
+        "noise": "noise-staged-all",
+        "traffic": "traffic-staged-all",
+        "eth-ucy": "eth-ucy",
+        "density": "density-staged-all",
+        "radius": "radius-staged-all",
+    }
+    rows = {
+        (preset, r["method"]): r["difference"]
+        for preset, board in published.items()
+        for r in settings_effect(BOARDS / board, BOARDS / "keep-every-draw" / preset)["rows"]
+    }
+    pattern = r"better for (\d+) of the (\d+) methods that rule decided \((\d\.\d) cm on "
+    pattern += r"average; fine-tuning, every board's reference, by (\d\.\d) cm on traffic and "
+    pattern += r"(\d\.\d) on noise\)"
+    gains = [-100 * rows["traffic", "finetune"], -100 * rows["noise", "finetune"]]
+    expected = [sum(d < 0 for d in rows.values()), len(rows), -100 * np.mean(list(rows.values()))]
+    assert quoted(pattern) == [*expected[:2], *(round(v, 1) for v in [expected[2], *gains])]
+
+
 def test_the_sim_to_real_ranking_is_the_committed_boards_tau():
     (tau,) = quoted(r"Kendall's tau \+(0\.\d\d) \[")
     spec = importlib.util.spec_from_file_location("transfer", ROOT / "scripts/ranking_transfer.py")
