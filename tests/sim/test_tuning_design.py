@@ -497,6 +497,10 @@ def test_a_reselected_artefact_names_its_rule_and_source_and_only_a_staged_one_i
     assert made["provenance"]["sha256"] == file_digest(artefacts.shipped("noise"))
     assert made["methods"]["finetune"]["settings"] == {"train": {"lr": 0.0007028831112648117}}
     assert artefacts.read_tuning(tmp_path / "noise.json")[2] == made["methods"]
+    back = artefacts.reselected(tmp_path / "noise.json", "mean", tmp_path / "back.json")
+    assert "keep_defaults" not in back["design"]  # the mean rule, as the shipped one says it
+    made_by_mean = Path(__file__).resolve().parents[2] / "docs/leaderboards/noise-staged-all"
+    assert back["methods"] == json.loads((made_by_mean / "noise.json").read_text())["methods"]
     optuna = Path(__file__).resolve().parents[2] / "docs/leaderboards/traffic-shipped/traffic.json"
     with pytest.raises(InputError, match="not a staged tuning's artefact"):
         artefacts.reselected(optuna, "every-draw", tmp_path / "no.json")

@@ -240,7 +240,7 @@ def reselected(given: Path, rule: str, out: Path) -> dict[str, Any]:
     if artefact.get("format") is None or named.get("kind") != "staged":
         raise InputError(f"{path}: not a staged tuning's artefact; only its runs can be reselected")
     shape = {f.name: named[f.name] for f in fields(Design) if f.name in named}
-    design = Design(**shape).keeping(rule)
+    design = Design(**shape).keeping(rule)  # the design's other words (its metric) kept below
     provenance = {
         "reselected_from": shown(path),
         "sha256": file_digest(path),
@@ -252,7 +252,7 @@ def reselected(given: Path, rule: str, out: Path) -> dict[str, Any]:
         artefact["preset"],
         artefact["scenario"],
         artefact["tune_scenario"],
-        {**named, **design.to_json()},  # the design's other words (its metric) kept
+        {**{k: v for k, v in named.items() if k != "keep_defaults"}, **design.to_json()},
         artefact["seed"],
         provenance,
         reselect(artefact, design),
