@@ -20,7 +20,7 @@ BOARDS = (
     "radius-staged-all",
     "density-staged-all",
     "noise-staged-all",
-    "traffic-staged-all",
+    "traffic-every-draw",
     "eth-ucy",
 )
 START, END = "<!-- tuned-table-2: made by scripts/tuned_table.py -->", "<!-- /tuned-table-2 -->"
