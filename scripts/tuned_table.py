@@ -19,7 +19,7 @@ from sim.studies.benchmark.board_markdown import boards_table  # noqa: E402
 BOARDS = (
     "radius-staged-all",
     "density-staged-all",
-    "noise-staged-all",
+    "noise-every-draw",
     "traffic-every-draw",
     "eth-ucy",
 )

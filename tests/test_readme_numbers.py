@@ -72,21 +72,23 @@ def test_density_leads_under_both_tunings():
 
 
 def test_noise_verdicts_are_those_both_of_its_tunings_star():
-    """Coresets ahead of fine-tuning under both tunings of noise at the quoted gaps, constant
-    velocity behind under both, and the two that are withdrawn starred by the Optuna one alone."""
+    """Coresets ahead of fine-tuning under both tunings of noise at the quoted gaps and over
+    the two, the adaptive baseline and constant velocity behind under both, PECNet withdrawn
+    (starred by the Optuna tuning alone), C2INet-online level under both."""
     from sim.studies.benchmark.stability import stability
 
-    boards = ("noise-shipped", "noise-staged-all")
-    quotes = quoted(
-        r"ahead of tuned fine-tuning under both tunings\*\* \(-(0\.\d+) and -(0\.\d+) m\)"
-    )
-    assert quotes == [-round(difference(b, "coresets"), 3) for b in boards]
-    verdicts = {
-        m: e["verdicts"] for m, e in stability([BOARDS / b for b in boards])["methods"].items()
-    }
+    boards = ("noise-shipped", "noise-every-draw")
+    pattern = r"ahead of tuned fine-tuning under both tunings\*\* \(-(0\.\d+) and -(0\.\d+) m; "
+    pattern += r"over the two, -(0\.\d+) \[-(0\.\d+), -(0\.\d+)\], Holm p (0\.\d+)\)"
+    result = stability([BOARDS / b for b in boards])["methods"]
+    over = result["coresets"]["over_tunings"]
+    expected = [-round(difference(b, "coresets"), 3) for b in boards]
+    expected += [-round(v, 3) for v in (over["difference"], *over["interval"])]
+    assert quoted(pattern) == [*expected, round(over["p_holm"], 3)]
+    verdicts = {m: e["verdicts"] for m, e in result.items()}
     both = {m: v[0] for m, v in verdicts.items() if v[0] == v[1] and v[0] != "level"}
-    assert both == {"coresets": "ahead", "cv": "behind"}
-    assert {m for m, v in verdicts.items() if v == ["behind", "level"]} == {"pecnet", "adaptive"}
+    assert both == {"coresets": "ahead", "adaptive": "behind", "cv": "behind"}
+    assert {m for m, v in verdicts.items() if v[0] != v[1]} == {"pecnet"}
     assert verdicts["c2inet-online"] == ["level", "level"]
 
 

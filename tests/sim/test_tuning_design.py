@@ -357,7 +357,7 @@ def test_a_board_of_an_optuna_tuning_keeps_the_artefact_it_ran(
     [
         ("radius", "radius-staged-all", "ade_k1"),
         ("density", "density-staged-all", "ade_k1"),
-        ("noise", "noise-staged-all", "ade_k1"),
+        ("noise", "noise-every-draw", "ade_k1"),
         ("traffic", "traffic-every-draw", "ade_k1"),
         ("eth-ucy", "eth-ucy", "ade"),
     ],
