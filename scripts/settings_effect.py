@@ -27,9 +27,11 @@ def main() -> int:
     for board in boards:
         if not (board / "leaderboard.json").is_file() or not (board / "results.parquet").is_file():
             raise InputError(f"{board}: not a board (no leaderboard.json and results.parquet)")
-    for first, second in zip(boards[::2], boards[1::2], strict=True):
+    pairs = list(zip(boards[::2], boards[1::2], strict=True))
+    results = [settings_effect(first, second) for first, second in pairs]  # all, then print
+    for (first, second), result in zip(pairs, results, strict=True):
         print(f"### {first} against {second}\n")
-        print(settings_effect_markdown(settings_effect(first, second)))
+        print(settings_effect_markdown(result))
     return 0
 
 
