@@ -75,3 +75,33 @@ def test_the_keep_rule_check_is_the_shipped_tuning_reselected_and_its_page_curre
     result = settings_effect(BOARDS / board, check)
     assert {r["method"] for r in result["rows"]} == moved
     assert settings_effect_markdown(result) in (check.parent / "README.md").read_text()
+
+
+def test_the_scripts_write_what_they_say_and_refuse_bad_input_in_one_line(tmp_path):
+    """``reselect_tuning.py`` names each method whose choice moves and writes the artefact;
+    given two boards that rank different metrics, ``settings_effect.py`` prints one error line
+    and nothing else, exit 2."""
+    import subprocess
+    import sys
+
+    root = BOARDS.parents[1]
+    out = tmp_path / "noise.json"
+    made = subprocess.run(
+        [sys.executable, "scripts/reselect_tuning.py", "docs/leaderboards/noise-staged-all",
+         "--keep-defaults", "every-draw", "--out", str(out)],
+        cwd=root, capture_output=True, text=True,
+    )  # fmt: skip
+    assert made.returncode == 0, made.stderr
+    moved = sorted(line.split(":")[0] for line in made.stdout.splitlines()[:-1])
+    assert moved == ["coresets", "finetune", "lwf", "si"]
+    assert (
+        json.loads(out.read_text())["methods"]
+        == json.loads((BOARDS / "noise-every-draw" / "noise.json").read_text())["methods"]
+    )
+    refused = subprocess.run(
+        [sys.executable, "scripts/settings_effect.py", "docs/leaderboards/noise-shipped",
+         "docs/leaderboards/eth-ucy"],
+        cwd=root, capture_output=True, text=True,
+    )  # fmt: skip
+    assert refused.returncode == 2 and refused.stdout == ""
+    assert refused.stderr.count("\n") == 1 and "not comparable" in refused.stderr
