@@ -11,6 +11,7 @@ An artefact is ``{"format": 1, "preset", "scenario", "tune_scenario", "design", 
 from __future__ import annotations
 
 import json
+from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
@@ -230,8 +231,6 @@ def reselected(given: Path, rule: str, out: Path) -> dict[str, Any]:
     """A staged artefact (a file, a board's folder or a preset's name) chosen anew from its own
     runs with ``rule`` keeping the defaults (``sim.experiment.staged.reselect``: no run), written
     to ``out`` with its design saying the rule and its provenance the file it came from."""
-    from dataclasses import fields
-
     from sim.experiment.design import Design
     from sim.experiment.staged import reselect
 
